@@ -1,0 +1,138 @@
+//! Acceleration structures: the narrow interface the renderer traces through.
+//!
+//! As in pbrt-v4, an accelerator answers `bounds`, closest-hit `intersect` and any-hit
+//! `occluded`, for single rays and for packets. [`brute::BruteForce`] tests every
+//! primitive and is the oracle; [`kdtree::KdTree`] is the fast path. Both hold the same
+//! [`Prims`] records, so a disagreement points at traversal, not at a primitive test.
+
+pub mod brute;
+pub mod kdtree;
+pub mod packet;
+pub mod prims;
+pub mod prims_packet;
+pub mod triaccel;
+pub mod triaccel_packet;
+
+use crate::ray::{Hit, Ray};
+use crate::scene::{Aabb, Geometry, Plane, Sphere};
+pub use packet::{HitPacket, RayPacket};
+use triaccel::TriAccel;
+
+/// An intersector over one scene's primitives.
+pub trait Accel: Sync {
+    /// Bounds of the bounded primitives (planes excluded).
+    fn bounds(&self) -> Aabb;
+
+    /// The closest hit with `ray.t_min < t < ray.t_max`; ties go to the smaller id.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// True when anything lies between `ray.t_min` and `ray.t_max`.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// Closest hits of the active lanes of `rays`; inactive lanes get [`Hit::MISS`].
+    fn intersect_packet(&self, rays: &RayPacket) -> HitPacket {
+        HitPacket::from_lanes(|i| match rays.lane(i) {
+            Some(r) => self.intersect(&r).unwrap_or(Hit::MISS),
+            None => Hit::MISS,
+        })
+    }
+
+    /// Bit `i` set when active lane `i` is occluded.
+    fn occluded_packet(&self, rays: &RayPacket) -> u32 {
+        let mut bits = 0;
+        for i in 0..crate::simd::LANES {
+            if rays.lane(i).is_some_and(|r| self.occluded(&r)) {
+                bits |= 1 << i;
+            }
+        }
+        bits
+    }
+}
+
+/// The primitive records an accelerator tests: TriAccel triangles, spheres and boxes
+/// (indexed by primitive id) and the unbounded planes, tested beside any tree.
+#[derive(Clone, Debug, Default)]
+pub struct Prims {
+    pub tris: Vec<TriAccel>,
+    pub spheres: Vec<Sphere>,
+    pub boxes: Vec<Aabb>,
+    pub planes: Vec<Plane>,
+    /// Id of the first sphere (= triangle count).
+    pub sphere_base: u32,
+    /// Id of the first box.
+    pub box_base: u32,
+    /// Id of the first plane (= number of bounded primitives).
+    pub plane_base: u32,
+}
+
+impl Prims {
+    pub fn new(g: &Geometry) -> Prims {
+        let sphere_base = g.triangles.len() as u32;
+        let box_base = sphere_base + g.spheres.len() as u32;
+        let plane_base = box_base + g.boxes.len() as u32;
+        Prims {
+            tris: TriAccel::build_all(g),
+            spheres: g.spheres.clone(),
+            boxes: g.boxes.clone(),
+            planes: g.planes.clone(),
+            sphere_base,
+            box_base,
+            plane_base,
+        }
+    }
+
+    /// Tests bounded primitive `prim` for `ray.t_min < t < t_max`.
+    #[inline]
+    pub fn intersect_prim(&self, prim: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if prim < self.sphere_base {
+            let (t, u, v) = self.tris[prim as usize].intersect(ray, t_max)?;
+            Some(Hit { t, u, v, prim })
+        } else if prim < self.box_base {
+            let t = prims::intersect_sphere(
+                &self.spheres[(prim - self.sphere_base) as usize],
+                ray,
+                t_max,
+            )?;
+            Some(Hit {
+                t,
+                u: 0.0,
+                v: 0.0,
+                prim,
+            })
+        } else {
+            let t = prims::intersect_box(&self.boxes[(prim - self.box_base) as usize], ray, t_max)?;
+            Some(Hit {
+                t,
+                u: 0.0,
+                v: 0.0,
+                prim,
+            })
+        }
+    }
+
+    /// Folds the planes into `best` (closest-hit order of [`Hit::is_closer`]).
+    #[inline]
+    pub fn intersect_planes(&self, ray: &Ray, best: &mut Hit) {
+        for (i, p) in self.planes.iter().enumerate() {
+            if let Some(t) = prims::intersect_plane(p, ray, best.t.min(ray.t_max)) {
+                let prim = self.plane_base + i as u32;
+                if Hit::is_closer(t, prim, best) {
+                    *best = Hit {
+                        t,
+                        u: 0.0,
+                        v: 0.0,
+                        prim,
+                    };
+                }
+            }
+        }
+    }
+
+    /// True when any plane lies in `(t_min, t_max)`.
+    #[inline]
+    pub fn planes_occlude(&self, ray: &Ray) -> bool {
+        self.planes
+            .iter()
+            .any(|p| prims::intersect_plane(p, ray, ray.t_max).is_some())
+    }
+}

@@ -1,0 +1,113 @@
+//! Ray packets in structure-of-arrays form: one SIMD register per component, one ray
+//! per lane (Wald 2004, chapter 6). The lane count comes from [`crate::simd::LANES`].
+
+use crate::ray::{Hit, NO_HIT, Ray};
+use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits};
+use glam::Vec3;
+
+/// `LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel: their
+/// values (NaN included) never influence the active lanes, and their outputs stay as
+/// they were.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPacket {
+    pub org: [Vf; 3],
+    pub dir: [Vf; 3],
+    /// `1 / dir`, computed with a true division (not `rcp`) so traversal matches the
+    /// scalar path bit for bit.
+    pub inv_dir: [Vf; 3],
+    pub t_min: Vf,
+    pub t_max: Vf,
+    /// Lane mask of the rays to trace.
+    pub active: Mask,
+}
+
+impl RayPacket {
+    /// Packs up to `LANES` rays; lanes past `rays.len()` are inactive.
+    pub fn from_rays(rays: &[Ray]) -> RayPacket {
+        assert!(rays.len() <= LANES, "a packet holds at most {LANES} rays");
+        let mut o = [[0.0f32; LANES]; 3];
+        let mut d = [[0.0f32; LANES]; 3];
+        let mut t_min = [0.0f32; LANES];
+        let mut t_max = [0.0f32; LANES];
+        for (i, r) in rays.iter().enumerate() {
+            for a in 0..3 {
+                o[a][i] = r.org[a];
+                d[a][i] = r.dir[a];
+            }
+            t_min[i] = r.t_min;
+            t_max[i] = r.t_max;
+        }
+        let org = o.map(Vf::from);
+        let dir = d.map(Vf::from);
+        RayPacket {
+            org,
+            dir,
+            inv_dir: dir.map(|x| Vf::ONE / x),
+            t_min: Vf::from(t_min),
+            t_max: Vf::from(t_max),
+            active: mask_from_bits((1u32 << rays.len()) - 1),
+        }
+    }
+
+    /// Bit `i` set when lane `i` is active.
+    #[inline]
+    pub fn active_bits(&self) -> u32 {
+        crate::simd::bits(self.active)
+    }
+
+    /// Lane `i` as a scalar ray, or `None` when it is inactive.
+    pub fn lane(&self, i: usize) -> Option<Ray> {
+        if self.active_bits() & (1 << i) == 0 {
+            return None;
+        }
+        let c = |v: &[Vf; 3]| Vec3::new(v[0].as_array()[i], v[1].as_array()[i], v[2].as_array()[i]);
+        Some(Ray::new(
+            c(&self.org),
+            c(&self.dir),
+            self.t_min.as_array()[i],
+            self.t_max.as_array()[i],
+        ))
+    }
+}
+
+/// Closest hits of a packet, one lane per ray; a miss has `t = +inf`, `prim = NO_HIT`.
+#[derive(Clone, Copy, Debug)]
+pub struct HitPacket {
+    pub t: Vf,
+    pub u: Vf,
+    pub v: Vf,
+    pub prim: Vu,
+}
+
+impl HitPacket {
+    /// All lanes missed.
+    pub fn miss() -> HitPacket {
+        HitPacket {
+            t: Vf::splat(f32::INFINITY),
+            u: Vf::ZERO,
+            v: Vf::ZERO,
+            prim: Vu::splat(NO_HIT),
+        }
+    }
+
+    /// Builds a packet lane by lane.
+    pub fn from_lanes(mut f: impl FnMut(usize) -> Hit) -> HitPacket {
+        let hits: [Hit; LANES] = std::array::from_fn(&mut f);
+        HitPacket {
+            t: Vf::from(hits.map(|h| h.t)),
+            u: Vf::from(hits.map(|h| h.u)),
+            v: Vf::from(hits.map(|h| h.v)),
+            prim: Vu::from(hits.map(|h| h.prim)),
+        }
+    }
+
+    /// Lane `i` as a scalar hit.
+    pub fn lane(&self, i: usize) -> Hit {
+        Hit {
+            t: self.t.as_array()[i],
+            u: self.u.as_array()[i],
+            v: self.v.as_array()[i],
+            prim: self.prim.as_array()[i],
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! Packet twin of [`crate::accel::triaccel`]: one TriAccel record against `LANES` rays.

@@ -1,0 +1,80 @@
+//! The look-at pinhole camera, with exactly the convention of RAYS.md.
+
+use crate::ray::Ray;
+use glam::Vec3;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    pub vfov_deg: f32,
+}
+
+/// A camera prepared for one image size.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraFrame {
+    pub eye: Vec3,
+    pub forward: Vec3,
+    pub right: Vec3,
+    pub up: Vec3,
+    /// `tan(vfov / 2)`.
+    pub h: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Camera {
+    /// The basis of RAYS.md: `right = normalize(forward x up)`, `up' = right x forward`.
+    pub fn frame(&self, width: u32, height: u32) -> CameraFrame {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        let h = (self.vfov_deg.to_radians() / 2.0).tan();
+        CameraFrame {
+            eye: self.eye,
+            forward,
+            right,
+            up,
+            h,
+            width,
+            height,
+        }
+    }
+}
+
+impl CameraFrame {
+    /// The ray through film position `(x, y)` in pixels (pixel `(i, j)`'s centre is
+    /// `(i + 0.5, j + 0.5)`; y = 0 is the top row).
+    #[inline]
+    pub fn ray(&self, x: f32, y: f32) -> Ray {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let ndc_x = (x / w * 2.0 - 1.0) * self.h * w / h;
+        let ndc_y = (1.0 - y / h * 2.0) * self.h;
+        let dir = (self.forward + self.right * ndc_x + self.up * ndc_y).normalize();
+        Ray::new(self.eye, dir, 0.0, f32::INFINITY)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centre_pixel_looks_at_target_and_top_row_looks_up() {
+        let cam = Camera {
+            eye: Vec3::ZERO,
+            target: Vec3::new(0.0, 0.0, -1.0),
+            up: Vec3::Y,
+            vfov_deg: 90.0,
+        };
+        let f = cam.frame(4, 2);
+        let c = f.ray(2.0, 1.0);
+        assert!((c.dir - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-6);
+        assert!(f.ray(2.0, 0.0).dir.y > 0.0);
+        assert!(f.ray(4.0, 1.0).dir.x > 0.0, "x grows to the right");
+        // At the top edge with vfov 90, the direction is 45 degrees up.
+        let top = f.ray(2.0, 0.0).dir;
+        assert!((top.y - top.z.abs()).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,1 @@
+//! TOML scene files (documented key by key in scenes/README.md).

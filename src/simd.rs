@@ -1,0 +1,78 @@
+//! The one place that sets the SIMD width.
+//!
+//! Every packet kernel is written against these aliases and helpers, so changing
+//! the lane count (or the backend) means changing this file only. No other file
+//! names `wide`. Inspired by Embree's `vfloat<N>` and its single `VSIZEX`.
+
+/// Rays per packet.
+pub const LANES: usize = 4;
+
+/// One f32 per lane.
+pub type Vf = wide::f32x4;
+/// One u32 per lane (primitive ids).
+pub type Vu = wide::u32x4;
+/// One i32 per lane.
+pub type Vi = wide::i32x4;
+/// A lane mask: all bits set (true) or clear (false) per lane, as the comparisons return.
+pub type Mask = wide::f32x4;
+
+/// The same value in every lane.
+#[inline]
+pub fn splat(x: f32) -> Vf {
+    Vf::splat(x)
+}
+
+/// `if_true` where `mask` is set, `if_false` elsewhere.
+#[inline]
+pub fn select(mask: Mask, if_true: Vf, if_false: Vf) -> Vf {
+    mask.bitselect(if_true, if_false)
+}
+
+/// `if_true` where `mask` is set, `if_false` elsewhere, for integer lanes.
+#[inline]
+pub fn select_u(mask: Mask, if_true: Vu, if_false: Vu) -> Vu {
+    mask.to_bits().bitselect(if_true, if_false)
+}
+
+/// A mask with lane `i` set where bit `i` of `bits` is set.
+#[inline]
+pub fn mask_from_bits(bits: u32) -> Mask {
+    let lane = |i: u32| f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 });
+    Mask::new([lane(0), lane(1), lane(2), lane(3)])
+}
+
+/// Bit `i` set where lane `i` of `mask` is set.
+#[inline]
+pub fn bits(mask: Mask) -> u32 {
+    mask.to_bitmask()
+}
+
+/// True when any lane of `mask` is set.
+#[inline]
+pub fn any(mask: Mask) -> bool {
+    mask.any()
+}
+
+/// True when no lane of `mask` is set.
+#[inline]
+pub fn none(mask: Mask) -> bool {
+    !mask.any()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn masks_round_trip_through_bits() {
+        for b in 0..(1u32 << LANES) {
+            assert_eq!(bits(mask_from_bits(b)), b);
+        }
+        let m = mask_from_bits(0b0101);
+        let r = select(m, splat(1.0), splat(2.0)).to_array();
+        assert_eq!(r, [1.0, 2.0, 1.0, 2.0]);
+        let u = select_u(m, Vu::splat(7), Vu::splat(9)).to_array();
+        assert_eq!(u, [7, 9, 7, 9]);
+        assert!(any(m) && !none(m) && none(mask_from_bits(0)));
+    }
+}
