@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod file;
+pub mod generate;
 pub mod geometry;
 pub mod light;
 pub mod material;
