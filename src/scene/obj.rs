@@ -166,7 +166,6 @@ pub fn load(path: &Path) -> Result<ObjMesh, ObjError> {
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let no_mtl = |_: &Path| Ok((Vec::new(), Default::default()));
     let loaded = if scan.has_polylines {
@@ -267,9 +266,9 @@ fn assemble(
     // Every corner must be the file's position: this pins the fan order and file order.
     let mut file_index = vec![u32::MAX; vertex_count];
     for (t, tri) in mesh.triangles.iter().enumerate() {
-        for c in 0..3 {
+        for (c, &v) in tri.iter().enumerate() {
             let orig = scan.tri_pos[3 * t + c];
-            let v = tri[c] as usize;
+            let v = v as usize;
             if mesh.positions[v].to_array().map(f32::to_bits)
                 != scan.positions[orig as usize].to_array().map(f32::to_bits)
             {
@@ -679,10 +678,8 @@ fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
                     "needs a number".into()
                 })?;
             }
-            "illum" => {
-                if words.next().and_then(|w| w.parse::<u8>().ok()).is_none() {
-                    return Err(malformed(element, "needs an integer 0 to 255".into()));
-                }
+            "illum" if words.next().and_then(|w| w.parse::<u8>().ok()).is_none() => {
+                return Err(malformed(element, "needs an integer 0 to 255".into()));
             }
             e if e.starts_with("map_") || e == "bump" => {
                 // Options (`-s 1 1 1 file.png`) come first; the file name is last.
