@@ -24,6 +24,5 @@ pub mod simd;
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
 /// textures, ray files), which the CLI reports with exit code 2.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
-    let _ = e;
-    false
+    e.is::<scene::SceneError>() || e.is::<scene::ObjError>() || e.is::<scene::TextureError>()
 }
