@@ -12,6 +12,8 @@
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]
+// `!(x >= 0.0)` is how the kernels reject NaN along with the negatives.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
 pub mod ray;

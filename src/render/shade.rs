@@ -145,6 +145,12 @@ struct Bounce {
 }
 
 impl Bounce {
+    const CAMERA: Bounce = Bounce {
+        depth: 1,
+        budget: 1.0,
+        medium: Vec3::ZERO,
+    };
+
     /// The next bounce, with its budget scaled by `share`, travelling through `medium`.
     fn next(&self, share: f32, medium: Vec3) -> Bounce {
         Bounce {
@@ -191,19 +197,37 @@ impl<'a> Shader<'a> {
         rng: &mut Pcg32,
         counts: &mut RayCounts,
     ) -> (Vec3, HitSignature) {
+        self.shade_primary(ray, self.accel.intersect(ray), rng, counts)
+    }
+
+    /// Like [`Shader::trace_primary`] for a camera ray whose closest hit is already known
+    /// (a packet traversal found it): the same shading, so the same colour bit for bit.
+    pub fn shade_primary(
+        &self,
+        ray: &Ray,
+        hit: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut RayCounts,
+    ) -> (Vec3, HitSignature) {
         counts.primary += 1;
         let mut path = Path { rng, counts };
-        let camera = Bounce {
-            depth: 1,
-            budget: 1.0,
-            medium: Vec3::ZERO,
-        };
-        self.trace(ray, camera, &mut path)
+        self.finish(ray, hit, Bounce::CAMERA, &mut path)
     }
 
     /// The colour along `ray` and what it hit. The caller has counted the ray.
     fn trace(&self, ray: &Ray, at: Bounce, path: &mut Path) -> (Vec3, HitSignature) {
-        let Some(hit) = self.accel.intersect(ray) else {
+        self.finish(ray, self.accel.intersect(ray), at, path)
+    }
+
+    /// Shades `ray`'s closest hit `hit` and applies the absorption along the way to it.
+    fn finish(
+        &self,
+        ray: &Ray,
+        hit: Option<Hit>,
+        at: Bounce,
+        path: &mut Path,
+    ) -> (Vec3, HitSignature) {
+        let Some(hit) = hit else {
             let background = self.scene.settings.background;
             return (
                 background * transmission(at.medium, f32::INFINITY),

@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod error;
 pub mod file;
+pub mod generate;
 pub mod geometry;
 pub mod light;
 pub mod material;
