@@ -15,6 +15,7 @@
 
 pub mod accel;
 pub mod ray;
+pub mod rayset;
 pub mod render;
 pub mod scene;
 pub mod simd;
@@ -22,6 +23,5 @@ pub mod simd;
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
 /// textures, ray files), which the CLI reports with exit code 2.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
-    let _ = e;
-    false
+    e.is::<rayset::RaySetError>() || e.is::<rayset::scenes::BenchSceneError>()
 }
