@@ -12,6 +12,8 @@
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]
+// `!(x >= 0.0)` is how the kernels reject NaN along with the negatives.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
 pub mod ray;
@@ -23,5 +25,9 @@ pub mod simd;
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
 /// textures, ray files), which the CLI reports with exit code 2.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
-    e.is::<rayset::RaySetError>() || e.is::<rayset::scenes::BenchSceneError>()
+    e.is::<scene::SceneError>()
+        || e.is::<scene::ObjError>()
+        || e.is::<scene::TextureError>()
+        || e.is::<rayset::RaySetError>()
+        || e.is::<rayset::scenes::BenchSceneError>()
 }

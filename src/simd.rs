@@ -34,6 +34,20 @@ pub fn select_u(mask: Mask, if_true: Vu, if_false: Vu) -> Vu {
     mask.to_bits().bitselect(if_true, if_false)
 }
 
+/// `if a < b { a } else { b }` per lane: the order glam's `Vec3::min` and
+/// `min_element` use (the second operand wins on NaN or equality), so packet kernels
+/// reproduce the scalar ones bit for bit. One `minps`.
+#[inline]
+pub fn min_lt(a: Vf, b: Vf) -> Vf {
+    a.fast_min(b)
+}
+
+/// `if a > b { a } else { b }` per lane, glam's `Vec3::max` order. One `maxps`.
+#[inline]
+pub fn max_gt(a: Vf, b: Vf) -> Vf {
+    a.fast_max(b)
+}
+
 /// A mask with lane `i` set where bit `i` of `bits` is set.
 #[inline]
 pub fn mask_from_bits(bits: u32) -> Mask {
@@ -74,5 +88,29 @@ mod tests {
         let u = select_u(m, Vu::splat(7), Vu::splat(9)).to_array();
         assert_eq!(u, [7, 9, 7, 9]);
         assert!(any(m) && !none(m) && none(mask_from_bits(0)));
+    }
+
+    #[test]
+    fn min_and_max_follow_the_scalar_order() {
+        let pick_min = |a: f32, b: f32| if a < b { a } else { b };
+        let pick_max = |a: f32, b: f32| if a > b { a } else { b };
+        let xs = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            2.5,
+        ];
+        for &a in &xs {
+            for &b in &xs {
+                let lo = min_lt(splat(a), splat(b)).to_array()[0];
+                let hi = max_gt(splat(a), splat(b)).to_array()[0];
+                assert_eq!(lo.to_bits(), pick_min(a, b).to_bits(), "min({a:?}, {b:?})");
+                assert_eq!(hi.to_bits(), pick_max(a, b).to_bits(), "max({a:?}, {b:?})");
+            }
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! per lane (Wald 2004, chapter 6). The lane count comes from [`crate::simd::LANES`].
 
 use crate::ray::{Hit, NO_HIT, Ray};
-use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits};
+use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, select, select_u};
 use glam::Vec3;
 
 /// `LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel: their
@@ -70,6 +70,29 @@ impl RayPacket {
     }
 }
 
+/// One primitive's hits against a packet: lane `i` hit where `mask` is set (never for an
+/// inactive lane); `t`, `u`, `v` are meaningful only there.
+#[derive(Clone, Copy, Debug)]
+pub struct LaneHits {
+    pub mask: Mask,
+    pub t: Vf,
+    pub u: Vf,
+    pub v: Vf,
+}
+
+impl LaneHits {
+    /// No lane hit.
+    #[inline]
+    pub fn none() -> LaneHits {
+        LaneHits {
+            mask: Mask::ZERO,
+            t: Vf::ZERO,
+            u: Vf::ZERO,
+            v: Vf::ZERO,
+        }
+    }
+}
+
 /// Closest hits of a packet, one lane per ray; a miss has `t = +inf`, `prim = NO_HIT`.
 #[derive(Clone, Copy, Debug)]
 pub struct HitPacket {
@@ -88,6 +111,22 @@ impl HitPacket {
             v: Vf::ZERO,
             prim: Vu::splat(NO_HIT),
         }
+    }
+
+    /// Keeps, in each lane where `hits` hit, the closer of the lane's hit and primitive
+    /// `prim`'s, in the order of [`Hit::is_closer`] (smaller `t`, ties to the smaller id).
+    /// Returns the lanes that changed.
+    #[inline]
+    pub fn merge(&mut self, hits: &LaneHits, prim: u32) -> Mask {
+        let prim_v = Vu::splat(prim);
+        let smaller_id = Mask::from_bits(self.prim.simd_gt(prim_v));
+        let closer = hits.t.simd_lt(self.t) | (hits.t.simd_eq(self.t) & smaller_id);
+        let take = hits.mask & closer;
+        self.t = select(take, hits.t, self.t);
+        self.u = select(take, hits.u, self.u);
+        self.v = select(take, hits.v, self.v);
+        self.prim = select_u(take, prim_v, self.prim);
+        take
     }
 
     /// Builds a packet lane by lane.

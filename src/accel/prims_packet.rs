@@ -1,2 +1,128 @@
 //! Packet twins of [`crate::accel::prims`]: spheres, boxes and planes against a whole
-//! packet, in the scalar tests' operation order.
+//! packet, in the scalar tests' operation order, so each lane's `t` is bit-identical to
+//! the scalar test's. Inactive lanes never hit and influence no other lane.
+//!
+//! [`Prims`]' packet methods dispatch a primitive id to its test, as the scalar
+//! [`Prims::intersect_prim`] does, and fold the unbounded planes into a packet's hits.
+
+use super::Prims;
+use super::packet::{HitPacket, LaneHits, RayPacket};
+use crate::scene::{Aabb, Plane, Sphere};
+use crate::simd::{Mask, Vf, max_gt, min_lt, none, select, splat};
+
+/// `a . b` in glam's order: `(x + y) + z`.
+#[inline]
+fn dot(a: [Vf; 3], b: [Vf; 3]) -> Vf {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+fn in_range(t: Vf, rays: &RayPacket, t_max: Vf) -> Mask {
+    t.simd_gt(rays.t_min) & t.simd_lt(t_max)
+}
+
+/// Nearest `t` in `(t_min, t_max)` per lane where the ray meets the sphere's surface;
+/// twin of [`super::prims::intersect_sphere`].
+#[inline]
+pub fn intersect_sphere_packet(s: &Sphere, rays: &RayPacket, active: Mask, t_max: Vf) -> LaneHits {
+    let oc = [0, 1, 2].map(|a| rays.org[a] - splat(s.center[a]));
+    let a = dot(rays.dir, rays.dir);
+    let b = dot(oc, rays.dir);
+    let c = dot(oc, oc) - splat(s.radius * s.radius);
+    let disc = b * b - a * c;
+    let mask = active & disc.simd_ge(Vf::ZERO);
+    if none(mask) {
+        return LaneHits::none();
+    }
+    let root = disc.sqrt();
+    nearer_in_range(mask, (-b - root) / a, (-b + root) / a, rays, t_max)
+}
+
+/// In the lanes of `mask`, `t0` if it lies in `(t_min, t_max)`, else `t1` if it does:
+/// the scalar tests' "nearer root first".
+#[inline]
+fn nearer_in_range(mask: Mask, t0: Vf, t1: Vf, rays: &RayPacket, t_max: Vf) -> LaneHits {
+    let near = in_range(t0, rays, t_max);
+    let far = in_range(t1, rays, t_max);
+    LaneHits {
+        mask: mask & (near | far),
+        t: select(near, t0, t1),
+        u: Vf::ZERO,
+        v: Vf::ZERO,
+    }
+}
+
+/// Nearest `t` in `(t_min, t_max)` per lane where the ray meets the box's surface (slab
+/// test); twin of [`super::prims::intersect_box`]. `rays.inv_dir` is `1 / dir` by true
+/// division, as the scalar `recip`.
+#[inline]
+pub fn intersect_box_packet(b: &Aabb, rays: &RayPacket, active: Mask, t_max: Vf) -> LaneHits {
+    let t0 = [0, 1, 2].map(|a| (splat(b.min[a]) - rays.org[a]) * rays.inv_dir[a]);
+    let t1 = [0, 1, 2].map(|a| (splat(b.max[a]) - rays.org[a]) * rays.inv_dir[a]);
+    let lo = [0, 1, 2].map(|a| min_lt(t0[a], t1[a]));
+    let hi = [0, 1, 2].map(|a| max_gt(t0[a], t1[a]));
+    let t_near = max_gt(lo[0], max_gt(lo[1], lo[2]));
+    let t_far = min_lt(hi[0], min_lt(hi[1], hi[2]));
+    let mask = active & t_near.simd_le(t_far);
+    nearer_in_range(mask, t_near, t_far, rays, t_max)
+}
+
+/// `t` in `(t_min, t_max)` per lane where the ray meets the plane; twin of
+/// [`super::prims::intersect_plane`].
+#[inline]
+pub fn intersect_plane_packet(p: &Plane, rays: &RayPacket, active: Mask, t_max: Vf) -> LaneHits {
+    let n = [0, 1, 2].map(|a| splat(p.normal[a]));
+    let t = (splat(p.offset) - dot(n, rays.org)) / dot(n, rays.dir);
+    LaneHits {
+        mask: active & in_range(t, rays, t_max),
+        t,
+        u: Vf::ZERO,
+        v: Vf::ZERO,
+    }
+}
+
+impl Prims {
+    /// Tests bounded primitive `prim` against the `active` lanes; twin of
+    /// [`Prims::intersect_prim`].
+    #[inline]
+    pub fn intersect_prim_packet(
+        &self,
+        prim: u32,
+        rays: &RayPacket,
+        active: Mask,
+        t_max: Vf,
+    ) -> LaneHits {
+        if prim < self.sphere_base {
+            self.tris[prim as usize].intersect_packet(rays, active, t_max)
+        } else if prim < self.box_base {
+            let s = &self.spheres[(prim - self.sphere_base) as usize];
+            intersect_sphere_packet(s, rays, active, t_max)
+        } else {
+            let b = &self.boxes[(prim - self.box_base) as usize];
+            intersect_box_packet(b, rays, active, t_max)
+        }
+    }
+
+    /// Folds the planes into the `active` lanes of `best`; twin of
+    /// [`Prims::intersect_planes`].
+    #[inline]
+    pub fn intersect_planes_packet(&self, rays: &RayPacket, active: Mask, best: &mut HitPacket) {
+        for (i, p) in self.planes.iter().enumerate() {
+            let hits = intersect_plane_packet(p, rays, active, best.t.min(rays.t_max));
+            best.merge(&hits, self.plane_base + i as u32);
+        }
+    }
+
+    /// Lanes of `active` that a plane occludes; twin of [`Prims::planes_occlude`].
+    #[inline]
+    pub fn planes_occlude_packet(&self, rays: &RayPacket, active: Mask) -> Mask {
+        let mut hit = Mask::ZERO;
+        for p in &self.planes {
+            hit = hit | intersect_plane_packet(p, rays, active & !hit, rays.t_max).mask;
+            if (active & !hit).to_bitmask() == 0 {
+                break;
+            }
+        }
+        hit
+    }
+}

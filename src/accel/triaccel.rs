@@ -119,6 +119,7 @@ impl TriAccel {
     ///
     /// Operation order is part of the contract: the packet test repeats it exactly.
     #[inline]
+    #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<(f32, f32, f32)> {
         let k = self.k as usize;
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);

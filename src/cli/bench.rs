@@ -10,7 +10,7 @@
 use super::{BadInput, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
-use raypack::accel::brute::BruteForce;
+use raypack::accel::kdtree::KdTree;
 use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
 use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
@@ -20,12 +20,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 /// The accelerator `bench`, `trace` and `rays` trace through.
-pub type BenchAccel = BruteForce;
+pub type BenchAccel = KdTree;
 
-/// Builds the accelerator of `geometry`; returns it and the build time in seconds.
+/// Builds the accelerator of `geometry` (on the global rayon pool: every core unless
+/// `RAYON_NUM_THREADS` says otherwise); returns it and the build time in seconds.
 pub fn build_accel(geometry: &Geometry) -> (BenchAccel, f64) {
     let start = Instant::now();
-    let accel = BruteForce::new(geometry);
+    let accel = KdTree::build(geometry);
     (accel, start.elapsed().as_secs_f64())
 }
 
@@ -41,7 +42,7 @@ pub fn prepare(
 }
 
 /// Name of the accelerator, for reports.
-pub const ACCEL_NAME: &str = "brute force";
+pub const ACCEL_NAME: &str = "SAH kd-tree";
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

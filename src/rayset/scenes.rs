@@ -12,8 +12,8 @@
 //!   ([`crate::scene::spd`]) with its published viewpoint.
 
 use super::View;
-use crate::scene::Geometry;
 use crate::scene::spd::{self, SpdError};
+use crate::scene::{Geometry, ObjError};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -42,6 +42,8 @@ pub enum BenchSceneError {
     Load { path: PathBuf, message: String },
     #[error(transparent)]
     Spd(#[from] SpdError),
+    #[error(transparent)]
+    Obj(#[from] ObjError),
 }
 
 /// A scene ready to trace: its geometry and the camera of its primary set.
@@ -144,11 +146,13 @@ pub fn overview(geometry: &Geometry) -> View {
     }
 }
 
-/// Reads an OBJ mesh's geometry.
+/// Reads an OBJ mesh's geometry (triangle ids in file order, as RAYS.md numbers them).
 fn load_obj(path: &Path) -> Result<Geometry, BenchSceneError> {
-    Err(BenchSceneError::Load {
-        path: path.to_path_buf(),
-        message: "this build cannot read OBJ meshes yet".into(),
+    let mesh = crate::scene::obj::load(path)?;
+    Ok(Geometry {
+        vertices: mesh.positions,
+        triangles: mesh.triangles,
+        ..Geometry::default()
     })
 }
 

@@ -1,1 +1,280 @@
-//! render: film
+//! render: the film. Linear RGB pixels, written as 8-bit sRGB PNG (clamped to `[0, 1]`)
+//! or as PFM (32-bit floats, bit-exact, for comparisons between renders).
+//!
+//! Invariant: a file is written whole or not at all. Bytes go to a temporary file in the
+//! target's directory, which is then renamed over the target; on error it is removed.
+
+use glam::Vec3;
+use std::fs::File;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum FilmError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: PNG encoding failed: {source}")]
+    Png {
+        path: PathBuf,
+        source: image::ImageError,
+    },
+    #[error("{path}: not a colour PFM file: {reason}")]
+    BadPfm { path: PathBuf, reason: String },
+}
+
+/// A `width x height` image of linear RGB, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+/// The sRGB transfer function of IEC 61966-2-1, on a value clamped to `[0, 1]`.
+pub fn linear_to_srgb8(x: f32) -> u8 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    let s = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+impl Film {
+    /// A black film.
+    pub fn new(width: u32, height: u32) -> Film {
+        Film {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+        }
+    }
+
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    #[inline]
+    pub fn set(&mut self, x: u32, y: u32, c: Vec3) {
+        self.pixels[y as usize * self.width as usize + x as usize] = c;
+    }
+
+    /// 8-bit sRGB, row-major from the top, 3 bytes per pixel.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        self.pixels
+            .iter()
+            .flat_map(|c| [c.x, c.y, c.z].map(linear_to_srgb8))
+            .collect()
+    }
+
+    /// PFM when `path` ends in `.pfm` (any case), PNG otherwise.
+    pub fn write(&self, path: &Path) -> Result<(), FilmError> {
+        let pfm = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("pfm"));
+        if pfm {
+            self.write_pfm(path)
+        } else {
+            self.write_png(path)
+        }
+    }
+
+    pub fn write_png(&self, path: &Path) -> Result<(), FilmError> {
+        let bytes = self.to_srgb8();
+        write_atomic(path, |w| {
+            image::write_buffer_with_format(
+                w,
+                &bytes,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|source| FilmError::Png {
+                path: path.to_owned(),
+                source,
+            })
+        })
+    }
+
+    /// Portable float map: header `PF\n<w> <h>\n-1.0\n` (negative scale: little endian),
+    /// then rows of RGB f32 from the bottom row up.
+    pub fn write_pfm(&self, path: &Path) -> Result<(), FilmError> {
+        write_atomic(path, |w| {
+            let io = |source| FilmError::Io {
+                path: path.to_owned(),
+                source,
+            };
+            write!(w, "PF\n{} {}\n-1.0\n", self.width, self.height).map_err(io)?;
+            let mut row = Vec::with_capacity(self.width as usize * 12);
+            for y in (0..self.height).rev() {
+                row.clear();
+                for x in 0..self.width {
+                    let c = self.get(x, y);
+                    for v in [c.x, c.y, c.z] {
+                        row.extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+                w.write_all(&row).map_err(io)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Reads a colour PFM as written by [`Film::write_pfm`] (either byte order).
+    pub fn read_pfm(path: &Path) -> Result<Film, FilmError> {
+        let mut bytes = Vec::new();
+        File::open(path)
+            .and_then(|mut f| f.read_to_end(&mut bytes))
+            .map_err(|source| FilmError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
+        let bad = |reason: &str| FilmError::BadPfm {
+            path: path.to_owned(),
+            reason: reason.to_owned(),
+        };
+        let mut fields = Vec::new();
+        let mut pos = 0;
+        while fields.len() < 4 {
+            while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+                pos += 1;
+            }
+            let start = pos;
+            while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+                pos += 1;
+            }
+            if start == pos {
+                return Err(bad("truncated header"));
+            }
+            fields.push(String::from_utf8_lossy(&bytes[start..pos]).into_owned());
+        }
+        pos += 1;
+        if fields[0] != "PF" {
+            return Err(bad("magic is not PF"));
+        }
+        let width: u32 = fields[1].parse().map_err(|_| bad("bad width"))?;
+        let height: u32 = fields[2].parse().map_err(|_| bad("bad height"))?;
+        let scale: f32 = fields[3].parse().map_err(|_| bad("bad scale"))?;
+        let need = width as usize * height as usize * 12;
+        let data = bytes.get(pos..).filter(|d| d.len() == need);
+        let data = data.ok_or_else(|| bad("pixel data has the wrong length"))?;
+        let mut film = Film::new(width, height);
+        let value = |b: &[u8]| {
+            let b = [b[0], b[1], b[2], b[3]];
+            if scale < 0.0 {
+                f32::from_le_bytes(b)
+            } else {
+                f32::from_be_bytes(b)
+            }
+        };
+        for (i, px) in data.chunks_exact(12).enumerate() {
+            let (x, row) = (i % width as usize, i / width as usize);
+            let y = height - 1 - row as u32;
+            let c = Vec3::new(value(&px[0..4]), value(&px[4..8]), value(&px[8..12]));
+            film.set(x as u32, y, c);
+        }
+        Ok(film)
+    }
+}
+
+/// Writes through `f` into a temporary file beside `path`, then renames it to `path`.
+fn write_atomic(
+    path: &Path,
+    f: impl FnOnce(&mut BufWriter<File>) -> Result<(), FilmError>,
+) -> Result<(), FilmError> {
+    let io = |source| FilmError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let name = path.file_name().ok_or_else(|| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file name",
+        ))
+    })?;
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = path.with_file_name(tmp_name);
+    let result = File::create(&tmp).map_err(io).and_then(|file| {
+        let mut w = BufWriter::new(file);
+        f(&mut w)?;
+        let file = w.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(io)
+    });
+    let result = result.and_then(|()| std::fs::rename(&tmp, path).map_err(io));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("raypack-film-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn srgb_encoding_hits_its_anchor_points() {
+        assert_eq!(linear_to_srgb8(0.0), 0);
+        assert_eq!(linear_to_srgb8(1.0), 255);
+        assert_eq!(linear_to_srgb8(7.0), 255);
+        assert_eq!(linear_to_srgb8(-1.0), 0);
+        assert_eq!(linear_to_srgb8(f32::NAN), 0);
+        // 0.5 linear is 0.7354 in sRGB: 187.5 rounds to 188.
+        assert_eq!(linear_to_srgb8(0.5), 188);
+        assert_eq!(linear_to_srgb8(0.002), 7);
+    }
+
+    #[test]
+    fn pfm_round_trips_bit_exactly_and_png_decodes() {
+        let dir = temp_dir("rt");
+        let mut film = Film::new(3, 2);
+        film.set(0, 0, Vec3::new(0.1, -0.0, 1e30));
+        film.set(2, 1, Vec3::new(0.5, 2.0, 1.0 / 3.0));
+        let pfm = dir.join("a.PFM");
+        film.write(&pfm).unwrap();
+        let back = Film::read_pfm(&pfm).unwrap();
+        assert_eq!(back.width, 3);
+        for (a, b) in film.pixels.iter().zip(&back.pixels) {
+            for i in 0..3 {
+                assert_eq!(a[i].to_bits(), b[i].to_bits());
+            }
+        }
+        let png = dir.join("a.png");
+        film.write(&png).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (3, 2));
+        assert_eq!(img.get_pixel(2, 1).0, [188, 255, 156]);
+        assert_eq!(img.get_pixel(0, 0).0, [89, 0, 255]);
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n.to_string_lossy().contains(".tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_write_leaves_nothing_behind() {
+        let dir = temp_dir("fail");
+        let target = dir.join("missing-dir").join("x.png");
+        let err = Film::new(1, 1).write(&target).unwrap_err();
+        assert!(matches!(err, FilmError::Io { .. }), "{err}");
+        assert!(!target.exists());
+        assert!(std::fs::read_dir(&dir).unwrap().next().is_none());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

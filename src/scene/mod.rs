@@ -2,7 +2,9 @@
 //! that build them from TOML scene files and OBJ meshes.
 
 pub mod camera;
+pub mod error;
 pub mod file;
+pub mod generate;
 pub mod geometry;
 pub mod light;
 pub mod material;
@@ -11,6 +13,7 @@ pub mod spd;
 pub mod texture;
 
 pub use camera::{Camera, CameraFrame};
+pub use error::{ObjError, SceneError, TextureError};
 pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere};
 pub use light::Light;
 pub use material::Material;

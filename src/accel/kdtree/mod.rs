@@ -4,11 +4,18 @@
 //! pairs; a leaf indexes `leaves`, whose `[first, count]` names a contiguous run of
 //! `prim_indices`. Primitive records live in `prims` (the same [`Prims`] the brute-force
 //! oracle tests). Planes are not in the tree; traversal tests them beside it.
+//!
+//! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and
+//! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], every leaf range
+//! lies inside `prim_indices`, and every index names a bounded primitive.
 
+pub mod build;
 pub mod node;
+pub mod traverse;
 
 use super::Prims;
 use crate::scene::Aabb;
+pub use build::{BuildParams, BuildStats};
 use node::KdNode;
 
 pub struct KdTree {
@@ -20,4 +27,162 @@ pub struct KdTree {
     pub(crate) prims: Prims,
     /// Bounds of the bounded primitives; rays are clipped to it before traversal.
     pub(crate) bounds: Aabb,
+    pub(crate) build_stats: BuildStats,
+}
+
+/// Shape and cost figures of a built tree (`raypack info`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TreeStats {
+    pub build: BuildStats,
+    pub nodes: u32,
+    pub leaves: u32,
+    pub empty_leaves: u32,
+    pub max_leaf_depth: u32,
+    pub mean_leaf_depth: f64,
+    /// Over non-empty leaves.
+    pub mean_prims_per_leaf: f64,
+    /// Primitive references over primitives in the tree (duplication by straddling).
+    pub refs_per_prim: f64,
+    /// Expected cost of a random ray under the build's cost model:
+    /// `sum K_T SA(inner) / SA(root) + sum K_I n SA(leaf) / SA(root)`.
+    pub sah_cost: f64,
+    pub node_bytes: usize,
+    pub leaf_bytes: usize,
+    pub index_bytes: usize,
+    pub triaccel_bytes: usize,
+}
+
+impl KdTree {
+    /// The node array (root first).
+    pub fn nodes(&self) -> &[KdNode] {
+        &self.nodes
+    }
+
+    /// The `[first, count]` ranges of the leaves.
+    pub fn leaves(&self) -> &[[u32; 2]] {
+        &self.leaves
+    }
+
+    /// The primitive ids the leaves point into.
+    pub fn prim_indices(&self) -> &[u32] {
+        &self.prim_indices
+    }
+
+    pub fn prims(&self) -> &Prims {
+        &self.prims
+    }
+
+    pub fn build_stats(&self) -> &BuildStats {
+        &self.build_stats
+    }
+
+    /// Walks the tree for its statistics, priced with `params`' costs.
+    pub fn stats(&self, params: &BuildParams) -> TreeStats {
+        let mut s = TreeStats {
+            build: self.build_stats.clone(),
+            nodes: self.nodes.len() as u32,
+            leaves: self.leaves.len() as u32,
+            node_bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            leaf_bytes: std::mem::size_of_val(self.leaves.as_slice()),
+            index_bytes: std::mem::size_of_val(self.prim_indices.as_slice()),
+            triaccel_bytes: std::mem::size_of_val(self.prims.tris.as_slice()),
+            ..TreeStats::default()
+        };
+        let root_area = self.bounds.surface_area() as f64;
+        let mut depth_sum = 0u64;
+        let mut full_leaves = 0u64;
+        let mut sah = 0.0f64;
+        let mut stack = vec![(0u32, self.bounds, 0u32)];
+        while let Some((n, cell, depth)) = stack.pop() {
+            let node = &self.nodes[n as usize];
+            let area = if root_area > 0.0 {
+                cell.surface_area() as f64 / root_area
+            } else {
+                1.0
+            };
+            if node.is_leaf() {
+                let count = self.leaves[node.leaf_index() as usize][1];
+                if count == 0 {
+                    s.empty_leaves += 1;
+                } else {
+                    full_leaves += 1;
+                }
+                depth_sum += depth as u64;
+                s.max_leaf_depth = s.max_leaf_depth.max(depth);
+                sah += params.intersection_cost as f64 * count as f64 * area;
+            } else {
+                sah += params.traversal_cost as f64 * area;
+                let (a, c) = (node.axis(), node.children());
+                let (mut left, mut right) = (cell, cell);
+                left.max[a] = node.split;
+                right.min[a] = node.split;
+                stack.push((c, left, depth + 1));
+                stack.push((c + 1, right, depth + 1));
+            }
+        }
+        s.mean_leaf_depth = depth_sum as f64 / s.leaves.max(1) as f64;
+        s.mean_prims_per_leaf = self.prim_indices.len() as f64 / full_leaves.max(1) as f64;
+        s.refs_per_prim =
+            self.prim_indices.len() as f64 / self.build_stats.tree_prims.max(1) as f64;
+        s.sah_cost = sah;
+        s
+    }
+
+    /// Checks the structural invariants that traversal relies on (see the module doc).
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.nodes.len();
+        if n.is_multiple_of(2) {
+            return Err(format!("{n} nodes: expected the root plus pairs"));
+        }
+        let mut parents = vec![0u32; n];
+        let mut leaf_seen = vec![false; self.leaves.len()];
+        let mut stack = vec![(0u32, 0u32)];
+        while let Some((i, depth)) = stack.pop() {
+            if depth > build::MAX_DEPTH {
+                return Err(format!("node {i} at depth {depth} > {}", build::MAX_DEPTH));
+            }
+            let node = &self.nodes[i as usize];
+            if node.is_leaf() {
+                let l = node.leaf_index() as usize;
+                let Some(&[first, count]) = self.leaves.get(l) else {
+                    return Err(format!("node {i}: leaf {l} out of range"));
+                };
+                if std::mem::replace(&mut leaf_seen[l], true) {
+                    return Err(format!("leaf {l} shared"));
+                }
+                let end = first as usize + count as usize;
+                if end > self.prim_indices.len() {
+                    return Err(format!("leaf {l}: range {first}+{count} out of range"));
+                }
+                if let Some(p) = self.prim_indices[first as usize..end]
+                    .iter()
+                    .find(|&&p| p >= self.prims.plane_base)
+                {
+                    return Err(format!("leaf {l}: {p} is not a bounded primitive"));
+                }
+            } else {
+                let c = node.children() as usize;
+                if c == 0 || c.is_multiple_of(2) || c + 1 >= n {
+                    return Err(format!("node {i}: bad child pair {c}"));
+                }
+                if !node.split.is_finite() {
+                    return Err(format!("node {i}: split {}", node.split));
+                }
+                for child in [c, c + 1] {
+                    parents[child] += 1;
+                    if parents[child] > 1 {
+                        return Err(format!("node {child} has two parents"));
+                    }
+                    stack.push((child as u32, depth + 1));
+                }
+            }
+        }
+        if let Some(i) = (1..n).find(|&i| parents[i] != 1) {
+            return Err(format!("node {i} is unreachable"));
+        }
+        if let Some(l) = leaf_seen.iter().position(|&s| !s) {
+            return Err(format!("leaf {l} is unreachable"));
+        }
+        Ok(())
+    }
 }

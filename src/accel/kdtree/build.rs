@@ -1,0 +1,686 @@
+//! Stage: accel. The SAH kd-tree builder of Wald & Havran, "On building fast kd-trees for
+//! ray tracing, and on doing that in O(N log N)" (2006).
+//!
+//! - Events: every primitive gives, per axis, a start and an end event at the bounds of
+//!   its part inside the node (or one planar event when that part is flat). Each event is
+//!   one `u64` whose integer order is the sweep order: position, then end < planar <
+//!   start, then primitive id. The events are sorted once, at the root.
+//! - A node sweeps its three sorted lists once to price every candidate plane with the
+//!   surface area heuristic (planar primitives go to the cheaper side), classifies its
+//!   primitives left, right or both, and splits its lists by filtering; only the
+//!   straddling primitives get new events, which are sorted (few) and merged in.
+//! - Perfect splits: a straddling triangle is tested against each child box with
+//!   Akenine-Moller's separating-axis test and clipped to it (Sutherland-Hodgman), so its
+//!   events are the bounds of its part inside the child. Spheres use the squared-distance
+//!   test, boxes their intersection with the child. Clipped bounds are widened by a few
+//!   ulps where clipping rounded, so a primitive is never left out of a cell it touches.
+//! - Degenerate triangles (which no ray can hit) and non-finite primitives are left out;
+//!   ids never change. Planes are never in the tree.
+//! - Nodes are laid out depth first: a node's two children are allocated as a pair, then
+//!   the left subtree, then the right. Large subtrees are built in parallel with rayon;
+//!   the right subtree then goes into its own buffers that are appended, relocated, after
+//!   the left one, so the parallel tree is the serial tree, node for node.
+
+use super::KdTree;
+use super::node::{KdNode, MAX_INDEX};
+use crate::accel::Prims;
+use crate::scene::{Aabb, Geometry, PrimRef};
+use glam::Vec3;
+use std::time::Instant;
+
+/// The cost model and limits of the build.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildParams {
+    /// Cost of one traversal step (`K_T` in Wald & Havran).
+    pub traversal_cost: f32,
+    /// Cost of one primitive test (`K_I`).
+    pub intersection_cost: f32,
+    /// Fraction of the cost forgiven when a split cuts off empty space (1 - lambda).
+    pub empty_bonus: f32,
+    /// Depth limit; `None` gives `8 + 1.3 log2(N)`.
+    pub max_depth: Option<u32>,
+    /// Build subtrees in parallel on the current rayon pool.
+    pub parallel: bool,
+    /// A node with at least this many primitives builds its two children in parallel.
+    pub parallel_min_prims: u32,
+}
+
+impl Default for BuildParams {
+    fn default() -> Self {
+        BuildParams {
+            traversal_cost: 15.0,
+            intersection_cost: 20.0,
+            empty_bonus: 0.2,
+            max_depth: None,
+            parallel: true,
+            parallel_min_prims: 4096,
+        }
+    }
+}
+
+/// The depth limit can never exceed this, so traversal stacks have a fixed size.
+pub const MAX_DEPTH: u32 = 60;
+
+/// The default depth limit for `prim_count` primitives: `8 + 1.3 log2(N)`.
+pub fn default_max_depth(prim_count: u32) -> u32 {
+    let d = 8.0 + 1.3 * (prim_count.max(1) as f32).log2();
+    (d.round() as u32).min(MAX_DEPTH)
+}
+
+const END: u64 = 0;
+const PLANAR: u64 = 1;
+const START: u64 = 2;
+
+/// Maps a float to a `u32` with the same order (negative values flipped).
+#[inline]
+fn order_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 1 << 31 }
+}
+
+#[inline]
+fn from_order_bits(o: u32) -> f32 {
+    f32::from_bits(if o >> 31 == 1 { o & !(1 << 31) } else { !o })
+}
+
+/// An event key. `pos + 0.0` turns -0.0 into +0.0 so both zeros are one position.
+#[inline]
+fn event(pos: f32, kind: u64, prim: u32) -> u64 {
+    ((order_bits(pos + 0.0) as u64) << 32) | (kind << 30) | prim as u64
+}
+
+#[inline]
+fn event_pos(e: u64) -> f32 {
+    from_order_bits((e >> 32) as u32)
+}
+
+#[inline]
+fn event_kind(e: u64) -> u64 {
+    (e >> 30) & 3
+}
+
+#[inline]
+fn event_prim(e: u64) -> u32 {
+    e as u32 & MAX_INDEX
+}
+
+/// Appends the events of a primitive whose part in the node has bounds `b`.
+fn push_events(events: &mut [Vec<u64>; 3], b: &Aabb, prim: u32) {
+    for (axis, list) in events.iter_mut().enumerate() {
+        let (lo, hi) = (b.min[axis], b.max[axis]);
+        if lo == hi {
+            list.push(event(lo, PLANAR, prim));
+        } else {
+            list.push(event(lo, START, prim));
+            list.push(event(hi, END, prim));
+        }
+    }
+}
+
+/// A node waiting to be built: its cell and its three sorted event lists.
+struct Task {
+    cell: Aabb,
+    events: [Vec<u64>; 3],
+    prim_count: u32,
+    depth: u32,
+}
+
+/// The chosen plane.
+#[derive(Clone, Copy, Debug)]
+struct Split {
+    axis: usize,
+    pos: f32,
+    /// Primitives lying in the plane go left (else right).
+    planar_left: bool,
+    cost: f32,
+}
+
+/// Where a primitive goes, in the per-node scratch array.
+const LEFT: u8 = 1;
+const RIGHT: u8 = 2;
+const BOTH: u8 = 3;
+
+/// The arrays being written, in depth-first order.
+#[derive(Default)]
+struct Out {
+    nodes: Vec<KdNode>,
+    leaves: Vec<[u32; 2]>,
+    prim_indices: Vec<u32>,
+}
+
+impl Out {
+    /// Appends `sub`, a subtree built into its own buffers with its root at `sub.nodes[0]`,
+    /// putting its root into `slot`.
+    fn append(&mut self, sub: Out, slot: usize) {
+        let node_base = self.nodes.len() as u32 - 1;
+        let leaf_base = self.leaves.len() as u32;
+        let index_base = self.prim_indices.len() as u32;
+        self.nodes[slot] = relocate(&sub.nodes[0], node_base, leaf_base);
+        self.nodes.extend(
+            sub.nodes[1..]
+                .iter()
+                .map(|n| relocate(n, node_base, leaf_base)),
+        );
+        self.leaves.extend(
+            sub.leaves
+                .iter()
+                .map(|&[first, count]| [first + index_base, count]),
+        );
+        self.prim_indices.extend_from_slice(&sub.prim_indices);
+    }
+}
+
+/// `n` moved from its own buffers to ones where its child pairs start `node_base` and
+/// its leaves `leaf_base` later.
+fn relocate(n: &KdNode, node_base: u32, leaf_base: u32) -> KdNode {
+    if n.is_leaf() {
+        KdNode::leaf(n.leaf_index() + leaf_base)
+    } else {
+        KdNode::inner(n.axis() as u32, n.split, n.children() + node_base)
+    }
+}
+
+/// What the build reads, shared by all subtrees.
+struct Builder<'a> {
+    g: &'a Geometry,
+    params: &'a BuildParams,
+    max_depth: u32,
+    /// Size of the per-task classification scratch (one byte per bounded primitive).
+    prim_total: usize,
+}
+
+/// Figures about one build, for `raypack info` and perf/.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildStats {
+    pub build_seconds: f64,
+    /// Primitives put in the tree (degenerate triangles are left out).
+    pub tree_prims: u32,
+    pub max_depth_limit: u32,
+}
+
+/// Bounds of a bounded primitive, or `None` when it must stay out of the tree: a triangle
+/// no ray can hit (zero area) or anything with non-finite coordinates.
+fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
+    if let PrimRef::Triangle(t) = g.prim_ref(prim) {
+        let acc = &prims.tris[t as usize];
+        if acc.b_nu == 0.0 && acc.b_nv == 0.0 && acc.c_nu == 0.0 && acc.c_nv == 0.0 {
+            return None;
+        }
+    }
+    let b = g.prim_bounds(prim);
+    (b.min.is_finite() && b.max.is_finite() && !b.is_empty()).then_some(b)
+}
+
+impl KdTree {
+    /// Builds the tree with [`BuildParams::default`].
+    pub fn build(g: &Geometry) -> KdTree {
+        KdTree::build_with(g, &BuildParams::default())
+    }
+
+    /// Builds the tree of `g`'s bounded primitives.
+    pub fn build_with(g: &Geometry, params: &BuildParams) -> KdTree {
+        let start = Instant::now();
+        let prims = Prims::new(g);
+        let bounded = g.bounded_count();
+        assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
+        let mut cell = Aabb::EMPTY;
+        let mut events: [Vec<u64>; 3] = Default::default();
+        for list in &mut events {
+            list.reserve(2 * bounded as usize);
+        }
+        let mut prim_count = 0;
+        for prim in 0..bounded {
+            if let Some(b) = tree_bounds(g, &prims, prim) {
+                cell = cell.union(&b);
+                push_events(&mut events, &b, prim);
+                prim_count += 1;
+            }
+        }
+        if params.parallel {
+            use rayon::prelude::*;
+            events.par_iter_mut().for_each(|l| l.sort_unstable());
+        } else {
+            events.iter_mut().for_each(|l| l.sort_unstable());
+        }
+        let max_depth = params
+            .max_depth
+            .unwrap_or_else(|| default_max_depth(prim_count))
+            .min(MAX_DEPTH);
+        let builder = Builder {
+            g,
+            params,
+            max_depth,
+            prim_total: bounded as usize,
+        };
+        let mut out = Out::default();
+        out.nodes.push(KdNode::leaf(0));
+        let mut scratch = vec![0u8; builder.prim_total];
+        let task = Task {
+            cell,
+            events,
+            prim_count,
+            depth: 0,
+        };
+        builder.build_node(task, 0, &mut out, &mut scratch);
+        let stats = BuildStats {
+            build_seconds: start.elapsed().as_secs_f64(),
+            tree_prims: prim_count,
+            max_depth_limit: max_depth,
+        };
+        KdTree {
+            nodes: out.nodes,
+            leaves: out.leaves,
+            prim_indices: out.prim_indices,
+            prims,
+            bounds: cell,
+            build_stats: stats,
+        }
+    }
+}
+
+impl Builder<'_> {
+    fn build_node(&self, task: Task, slot: usize, out: &mut Out, scratch: &mut [u8]) {
+        let split = if task.prim_count == 0 || task.depth >= self.max_depth {
+            None
+        } else {
+            self.find_split(&task)
+        };
+        let leaf_cost = self.params.intersection_cost * task.prim_count as f32;
+        let Some(split) = split.filter(|s| s.cost < leaf_cost) else {
+            self.make_leaf(&task, slot, out);
+            return;
+        };
+        let (left, right) = self.split_task(task, &split, scratch);
+        let first = out.nodes.len();
+        assert!(first < MAX_INDEX as usize, "kd-tree: too many nodes");
+        out.nodes[slot] = KdNode::inner(split.axis as u32, split.pos, first as u32);
+        out.nodes.extend([KdNode::leaf(0), KdNode::leaf(0)]);
+        let big = left.prim_count.max(right.prim_count) >= self.params.parallel_min_prims;
+        if self.params.parallel && big {
+            let (_, sub) = rayon::join(
+                || self.build_node(left, first, out, scratch),
+                || {
+                    let mut sub = Out::default();
+                    sub.nodes.push(KdNode::leaf(0));
+                    let mut scratch = vec![0u8; self.prim_total];
+                    self.build_node(right, 0, &mut sub, &mut scratch);
+                    sub
+                },
+            );
+            out.append(sub, first + 1);
+        } else {
+            self.build_node(left, first, out, scratch);
+            self.build_node(right, first + 1, out, scratch);
+        }
+    }
+
+    /// A leaf holding the node's primitives in ascending id order.
+    fn make_leaf(&self, task: &Task, slot: usize, out: &mut Out) {
+        let first = out.prim_indices.len();
+        out.prim_indices.extend(
+            task.events[0]
+                .iter()
+                .filter(|&&e| event_kind(e) != END)
+                .map(|&e| event_prim(e)),
+        );
+        out.prim_indices[first..].sort_unstable();
+        let leaf = out.leaves.len();
+        assert!(leaf <= MAX_INDEX as usize, "kd-tree: too many leaves");
+        out.leaves
+            .push([first as u32, (out.prim_indices.len() - first) as u32]);
+        out.nodes[slot] = KdNode::leaf(leaf as u32);
+    }
+
+    /// The cheapest plane over all three axes by one sweep each (Wald & Havran's
+    /// `FindPlane`). Ties keep the first plane found, so the choice is deterministic.
+    fn find_split(&self, task: &Task) -> Option<Split> {
+        let cell = &task.cell;
+        let e = cell.max - cell.min;
+        let area = e.x * e.y + e.y * e.z + e.z * e.x;
+        if area.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let inv_area = 1.0 / area;
+        let (k_t, k_i) = (self.params.traversal_cost, self.params.intersection_cost);
+        let bonus = 1.0 - self.params.empty_bonus;
+        let n = task.prim_count;
+        let mut best: Option<Split> = None;
+        let mut best_cost = f32::INFINITY;
+        for (axis, events) in task.events.iter().enumerate() {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let cap = e[u] * e[v];
+            let perimeter = e[u] + e[v];
+            let (lo, hi) = (cell.min[axis], cell.max[axis]);
+            let (mut n_left, mut n_right) = (0u32, n);
+            let mut i = 0;
+            while i < events.len() {
+                let key = events[i] >> 32;
+                let group_start = i;
+                while i < events.len() && events[i] >> 32 == key && event_kind(events[i]) == END {
+                    i += 1;
+                }
+                let ends = (i - group_start) as u32;
+                let planar_start = i;
+                while i < events.len() && events[i] >> 32 == key && event_kind(events[i]) == PLANAR
+                {
+                    i += 1;
+                }
+                let planars = (i - planar_start) as u32;
+                let start_start = i;
+                while i < events.len() && events[i] >> 32 == key {
+                    i += 1;
+                }
+                let starts = (i - start_start) as u32;
+                n_right -= planars + ends;
+                let pos = from_order_bits(key as u32);
+                if pos > lo && pos < hi {
+                    let p_left = (cap + (pos - lo) * perimeter) * inv_area;
+                    let p_right = (cap + (hi - pos) * perimeter) * inv_area;
+                    let cost = |nl: u32, nr: u32| {
+                        let c = k_t + k_i * (p_left * nl as f32 + p_right * nr as f32);
+                        if nl == 0 || nr == 0 { c * bonus } else { c }
+                    };
+                    let with_left = cost(n_left + planars, n_right);
+                    let with_right = cost(n_left, n_right + planars);
+                    let (c, planar_left) = if with_left < with_right {
+                        (with_left, true)
+                    } else {
+                        (with_right, false)
+                    };
+                    if c < best_cost {
+                        best_cost = c;
+                        best = Some(Split {
+                            axis,
+                            pos,
+                            planar_left,
+                            cost: c,
+                        });
+                    }
+                }
+                n_left += starts + planars;
+            }
+        }
+        best
+    }
+
+    /// Classifies the node's primitives against `split` and builds the children's event
+    /// lists: filtered copies of the parent's, merged with the freshly clipped events of
+    /// the straddling primitives.
+    fn split_task(&self, task: Task, split: &Split, scratch: &mut [u8]) -> (Task, Task) {
+        let (axis, pos) = (split.axis, split.pos);
+        let axis_events = &task.events[axis];
+        for &e in axis_events {
+            scratch[event_prim(e) as usize] = BOTH;
+        }
+        let mut n_left = 0;
+        let mut n_right = 0;
+        for &e in axis_events {
+            let p = event_pos(e);
+            let side = match event_kind(e) {
+                END if p <= pos => LEFT,
+                START if p >= pos => RIGHT,
+                PLANAR if p < pos || (p == pos && split.planar_left) => LEFT,
+                PLANAR => RIGHT,
+                _ => continue,
+            };
+            scratch[event_prim(e) as usize] = side;
+            if side == LEFT {
+                n_left += 1;
+            } else {
+                n_right += 1;
+            }
+        }
+        let mut left_cell = task.cell;
+        left_cell.max[axis] = pos;
+        let mut right_cell = task.cell;
+        right_cell.min[axis] = pos;
+        let mut left_new: [Vec<u64>; 3] = Default::default();
+        let mut right_new: [Vec<u64>; 3] = Default::default();
+        for &e in axis_events {
+            if event_kind(e) != START || scratch[event_prim(e) as usize] != BOTH {
+                continue;
+            }
+            let prim = event_prim(e);
+            if let Some(b) = self.clip(prim, &left_cell) {
+                push_events(&mut left_new, &b, prim);
+                n_left += 1;
+            }
+            if let Some(b) = self.clip(prim, &right_cell) {
+                push_events(&mut right_new, &b, prim);
+                n_right += 1;
+            }
+        }
+        let child = |cell: Aabb, side: u8, new: &mut [Vec<u64>; 3], count: u32| Task {
+            cell,
+            events: std::array::from_fn(|a| {
+                new[a].sort_unstable();
+                merge_side(&task.events[a], scratch, side, &new[a])
+            }),
+            prim_count: count,
+            depth: task.depth + 1,
+        };
+        let left = child(left_cell, LEFT, &mut left_new, n_left);
+        let right = child(right_cell, RIGHT, &mut right_new, n_right);
+        (left, right)
+    }
+
+    /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.
+    fn clip(&self, prim: u32, cell: &Aabb) -> Option<Aabb> {
+        match self.g.prim_ref(prim) {
+            PrimRef::Triangle(t) => clip_triangle(self.g.triangle(t), cell),
+            PrimRef::Sphere(s) => {
+                let s = &self.g.spheres[s as usize];
+                let nearest = s.center.clamp(cell.min, cell.max);
+                let d2 = (nearest - s.center).length_squared();
+                // A touch of slack: an overlap lost to rounding would lose hits.
+                (d2 <= s.radius * s.radius * (1.0 + 1e-5))
+                    .then(|| intersect_boxes(&s.bounds(), cell))
+                    .filter(|b| !b.is_empty())
+            }
+            PrimRef::Box(b) => {
+                Some(intersect_boxes(&self.g.boxes[b as usize], cell)).filter(|b| !b.is_empty())
+            }
+            PrimRef::Plane(_) => None,
+        }
+    }
+}
+
+/// The events of `src` whose primitive is on `side`, merged with the sorted `extra`.
+fn merge_side(src: &[u64], scratch: &[u8], side: u8, extra: &[u64]) -> Vec<u64> {
+    let mut out = Vec::with_capacity(src.len() + extra.len());
+    let mut j = 0;
+    for &e in src {
+        if scratch[event_prim(e) as usize] != side {
+            continue;
+        }
+        while j < extra.len() && extra[j] < e {
+            out.push(extra[j]);
+            j += 1;
+        }
+        out.push(e);
+    }
+    out.extend_from_slice(&extra[j..]);
+    out
+}
+
+fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
+    Aabb::new(a.min.max(b.min), a.max.min(b.max))
+}
+
+/// Relative widening of coordinates that clipping computed (a few ulps of f32).
+const CLIP_SLACK: f32 = 1e-6;
+
+/// Room for a triangle clipped by six planes (3 + 6 corners), and for rounding.
+const CLIP_VERTICES: usize = 16;
+
+/// Bounds of the part of triangle `tri` inside `cell`, or `None` when they do not meet.
+///
+/// Akenine-Moller's test (on the cell widened by [`CLIP_SLACK`]) decides overlap; then
+/// the triangle is clipped to the cell (Sutherland-Hodgman). Corners of the triangle
+/// count exactly; points that clipping computed are widened by a few ulps on the axes
+/// clipping did not fix, and the result is intersected with the cell.
+pub fn clip_triangle(tri: [Vec3; 3], cell: &Aabb) -> Option<Aabb> {
+    let centre = (cell.min + cell.max) * 0.5;
+    let half = (cell.max - cell.min) * 0.5;
+    let slack = (centre.abs() + half) * CLIP_SLACK;
+    if !tri_box_overlap(centre, half + slack, tri) {
+        return None;
+    }
+    let whole = {
+        let mut b = Aabb::EMPTY;
+        tri.iter().for_each(|&p| b.grow(p));
+        b
+    };
+    // Rounding can lose a sliver that the overlap test kept, or (in theory) make the
+    // polygon non-convex; the plain bounds in the cell are then the safe answer.
+    let fallback = Some(intersect_boxes(&whole, cell)).filter(|b| !b.is_empty());
+    // Each vertex carries a flag: true when it is one of the triangle's own corners.
+    let mut poly = [(Vec3::ZERO, true); CLIP_VERTICES];
+    let mut len = 3;
+    for (slot, &p) in poly.iter_mut().zip(&tri) {
+        *slot = (p, true);
+    }
+    let mut next = [(Vec3::ZERO, true); CLIP_VERTICES];
+    for axis in 0..3 {
+        for (plane, keep_below) in [(cell.min[axis], false), (cell.max[axis], true)] {
+            let inside = |p: Vec3| {
+                if keep_below {
+                    p[axis] <= plane
+                } else {
+                    p[axis] >= plane
+                }
+            };
+            if poly[..len].iter().all(|&(p, _)| inside(p)) {
+                continue;
+            }
+            let mut n = 0;
+            for i in 0..len {
+                let (a, a_exact) = poly[i];
+                let (b, _) = poly[(i + 1) % len];
+                let (a_in, b_in) = (inside(a), inside(b));
+                if a_in {
+                    if n == CLIP_VERTICES {
+                        return fallback;
+                    }
+                    next[n] = (a, a_exact);
+                    n += 1;
+                }
+                if a_in != b_in {
+                    if n == CLIP_VERTICES {
+                        return fallback;
+                    }
+                    let t = (plane - a[axis]) / (b[axis] - a[axis]);
+                    let mut p = a + (b - a) * t;
+                    p[axis] = plane;
+                    next[n] = (p, false);
+                    n += 1;
+                }
+            }
+            poly = next;
+            len = n;
+            if len == 0 {
+                break;
+            }
+        }
+    }
+    if len == 0 {
+        return fallback;
+    }
+    let mut b = Aabb::EMPTY;
+    for &(p, exact) in &poly[..len] {
+        if exact {
+            b.grow(p);
+        } else {
+            let widen = p.abs().max(whole.min.abs().max(whole.max.abs())) * CLIP_SLACK;
+            b.grow(p - widen);
+            b.grow(p + widen);
+        }
+    }
+    let b = intersect_boxes(&b, cell);
+    (!b.is_empty()).then_some(b)
+}
+
+/// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over
+/// the box's three axes, the triangle's normal and the nine edge cross products.
+pub fn tri_box_overlap(centre: Vec3, half: Vec3, tri: [Vec3; 3]) -> bool {
+    let v = tri.map(|p| p - centre);
+    for axis in 0..3 {
+        let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
+        let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
+        if lo > half[axis] || hi < -half[axis] {
+            return false;
+        }
+    }
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    let normal = edges[0].cross(edges[1]);
+    let d = normal.dot(v[0]);
+    let r = half.dot(normal.abs());
+    if d > r || d < -r {
+        return false;
+    }
+    for e in edges {
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let a = axis.cross(e);
+            let p = v.map(|x| a.dot(x));
+            let lo = p[0].min(p[1]).min(p[2]);
+            let hi = p[0].max(p[1]).max(p[2]);
+            let r = half.dot(a.abs());
+            if lo > r || hi < -r {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn event_keys_sort_by_position_then_kind_then_prim() {
+        let mut keys = [
+            event(1.0, START, 0),
+            event(1.0, END, 5),
+            event(-2.0, START, 1),
+            event(1.0, PLANAR, 2),
+            event(-0.0, END, 3),
+            event(0.0, START, 4),
+            event(f32::MIN_POSITIVE, END, 9),
+        ];
+        keys.sort_unstable();
+        let order: Vec<u32> = keys.iter().map(|&e| event_prim(e)).collect();
+        assert_eq!(order, vec![1, 3, 4, 9, 5, 2, 0]);
+        assert_eq!(event_pos(event(-2.5, END, 7)), -2.5);
+        assert_eq!(event_pos(event(-0.0, END, 7)).to_bits(), 0.0f32.to_bits());
+        assert_eq!(event_kind(event(3.0, PLANAR, MAX_INDEX)), PLANAR);
+        assert_eq!(event_prim(event(3.0, START, MAX_INDEX)), MAX_INDEX);
+    }
+
+    #[test]
+    fn clipping_gives_the_part_inside_the_cell() {
+        let tri = [
+            Vec3::ZERO,
+            Vec3::new(4.0, 0.0, 0.0),
+            Vec3::new(0.0, 4.0, 0.0),
+        ];
+        let cell = Aabb::new(Vec3::new(1.0, 1.0, -1.0), Vec3::new(5.0, 5.0, 1.0));
+        let b = clip_triangle(tri, &cell).expect("overlaps");
+        // The part with x >= 1, y >= 1 is the triangle (1,1) (3,1) (1,3).
+        assert!((b.min - Vec3::new(1.0, 1.0, 0.0)).abs().max_element() < 1e-5);
+        assert!((b.max - Vec3::new(3.0, 3.0, 0.0)).abs().max_element() < 1e-5);
+        assert!(b.min.x >= 1.0 && b.min.y >= 1.0 && b.max.x >= 3.0 && b.max.y >= 3.0);
+        // A cell beyond the hypotenuse: the bounds overlap, the triangle does not.
+        let beyond = Aabb::new(Vec3::new(2.5, 2.5, -1.0), Vec3::new(5.0, 5.0, 1.0));
+        assert_eq!(clip_triangle(tri, &beyond), None);
+        // Touching the cell at one corner still counts.
+        let corner = Aabb::new(Vec3::new(4.0, -1.0, -1.0), Vec3::new(5.0, 0.0, 1.0));
+        assert!(clip_triangle(tri, &corner).is_some());
+    }
+
+    #[test]
+    fn depth_limit_follows_the_paper() {
+        assert_eq!(default_max_depth(1), 8);
+        assert_eq!(default_max_depth(1 << 20), 34);
+    }
+}

@@ -1,0 +1,175 @@
+//! Stage: accel. Scalar front-to-back kd-tree traversal with an explicit stack, in the
+//! spirit of Havran's robust recursive scheme (PhD thesis 2000, appendix C) as Wald
+//! writes it (PhD thesis 2004, section 7.2): clip the ray to the scene box, then at each
+//! inner node compute where the ray crosses the split plane and go near-only, far-only,
+//! or near now and far later (pushed with its interval).
+//!
+//! Exactness, so the tree returns what brute force returns, bit for bit:
+//! - A direction component of +0.0 or -0.0 never enters a division: the ray is on one
+//!   side of the plane, or lies in it and then visits both children with the same
+//!   interval.
+//! - Planes are widened by [`PLANE_SLACK`] relative to the coordinates involved (8 ulps): a
+//!   ray passing within rounding of a plane visits the cells on both sides, because a
+//!   triangle test can round such a ray onto a triangle that lies across the plane (an
+//!   axis-parallel ray through a shared corner, say). For a crossing ray the margin
+//!   becomes an interval in `t`; for a parallel one, a band around the plane.
+//! - A primitive found in a leaf may be hit outside the leaf's cell; the search stops only
+//!   when every node left on the stack starts beyond the best hit (for ordered intervals
+//!   this is Havran's "the hit lies before the current node's exit"), so a closer hit in
+//!   a later cell, or an equal `t` with a smaller id, is never missed.
+//! - Leaves test with `t_max = next_up(best.t)` so equal-`t` ties reach
+//!   [`Hit::is_closer`].
+
+use super::KdTree;
+use super::build::MAX_DEPTH;
+use crate::accel::Accel;
+use crate::ray::{Hit, Ray};
+use crate::scene::Aabb;
+use glam::Vec3;
+
+/// Stack entries: one per level at most.
+const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
+
+/// Relative widening of split planes and of the scene box (8 ulps of f32).
+pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
+
+impl KdTree {
+    /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
+    /// cut to `[t_min, t_max]`; `None` when the ray misses the box (or has NaNs).
+    /// `inv_dir` is `1 / dir` (a true division, as the packet path computes it).
+    #[inline]
+    pub fn clip_ray(&self, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
+        clip_to_box(&self.bounds, ray, inv_dir)
+    }
+
+    /// Closest hit among the tree's primitives (planes excluded), folded into `best`;
+    /// with `ANY_HIT`, returns true at the first hit in `(t_min, t_max)` instead.
+    #[inline]
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
+        let inv_dir = Vec3::ONE / ray.dir;
+        let Some((mut t_near, mut t_far)) = self.clip_ray(ray, inv_dir) else {
+            return false;
+        };
+        let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
+        let mut depth = 0;
+        let mut node = 0u32;
+        loop {
+            let n = self.nodes[node as usize];
+            if !n.is_leaf() {
+                let axis = n.axis();
+                let children = n.children();
+                let (o, d) = (ray.org[axis], ray.dir[axis]);
+                // Within `margin` of the plane, a triangle test can round a ray onto
+                // either side of it.
+                let margin = (n.split.abs() + o.abs()) * PLANE_SLACK;
+                if d == 0.0 {
+                    if o + margin < n.split {
+                        node = children;
+                    } else if o - margin > n.split {
+                        node = children + 1;
+                    } else {
+                        stack[depth] = (children + 1, t_near, t_far);
+                        depth += 1;
+                        node = children;
+                    }
+                    continue;
+                }
+                let t_split = (n.split - o) * inv_dir[axis];
+                let slack = margin * inv_dir[axis].abs();
+                let (near, far) = if d > 0.0 {
+                    (children, children + 1)
+                } else {
+                    (children + 1, children)
+                };
+                if t_split - slack > t_far {
+                    node = near;
+                } else if t_split + slack < t_near {
+                    node = far;
+                } else {
+                    stack[depth] = (far, t_near.max(t_split - slack), t_far);
+                    depth += 1;
+                    node = near;
+                    t_far = t_far.min(t_split + slack);
+                }
+                continue;
+            }
+            let [first, count] = self.leaves[n.leaf_index() as usize];
+            let prims = &self.prim_indices[first as usize..(first + count) as usize];
+            if ANY_HIT {
+                if prims
+                    .iter()
+                    .any(|&p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
+                {
+                    return true;
+                }
+            } else {
+                for &p in prims {
+                    let limit = best.t.next_up().min(ray.t_max);
+                    if let Some(h) = self.prims.intersect_prim(p, ray, limit)
+                        && Hit::is_closer(h.t, h.prim, best)
+                    {
+                        *best = h;
+                    }
+                }
+            }
+            loop {
+                if depth == 0 {
+                    return false;
+                }
+                depth -= 1;
+                let (next, entry, exit) = stack[depth];
+                if !ANY_HIT && entry > best.t {
+                    continue;
+                }
+                (node, t_near, t_far) = (next, entry, exit);
+                break;
+            }
+        }
+    }
+}
+
+/// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`].
+#[inline]
+pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
+    let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+    for axis in 0..3 {
+        let o = ray.org[axis];
+        let (lo, hi) = (b.min[axis], b.max[axis]);
+        let margin = (lo.abs().max(hi.abs()) + o.abs()) * PLANE_SLACK;
+        if ray.dir[axis] == 0.0 {
+            if !(o >= lo - margin && o <= hi + margin) {
+                return None;
+            }
+            continue;
+        }
+        let slack = margin * inv_dir[axis].abs();
+        let ta = (lo - o) * inv_dir[axis];
+        let tb = (hi - o) * inv_dir[axis];
+        let (t_lo, t_hi) = if ray.dir[axis] > 0.0 {
+            (ta, tb)
+        } else {
+            (tb, ta)
+        };
+        t0 = t0.max(t_lo - slack);
+        t1 = t1.min(t_hi + slack);
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+impl Accel for KdTree {
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut best = Hit::MISS;
+        self.traverse::<false>(ray, &mut best);
+        self.prims.intersect_planes(ray, &mut best);
+        best.is_hit().then_some(best)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut unused = Hit::MISS;
+        self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
+    }
+}

@@ -1,0 +1,174 @@
+//! Errors of the scene stage: what went wrong with a scene file, an OBJ mesh or a texture,
+//! always naming the file and, where there is one, the line and the key or field.
+//!
+//! Messages read `file:line: key: what is wrong`, like a compiler's, so an editor can
+//! jump to the place. Every variant is about user data; `crate::is_input_error` maps them
+//! all to the CLI's exit code 2.
+
+use std::path::PathBuf;
+
+/// A scene file (TOML) that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{}: cannot read scene file: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// TOML syntax errors and type mismatches, as reported by the TOML parser.
+    #[error("{}:{line}: {message}", path.display())]
+    Syntax {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error("{}:{line}: unknown key `{key}`{}", path.display(), suggestion_text(suggestion))]
+    UnknownKey {
+        path: PathBuf,
+        line: usize,
+        key: String,
+        suggestion: Option<String>,
+    },
+    /// A value of the right type outside its valid range (or not finite).
+    #[error("{}:{line}: {key}: {message}", path.display())]
+    Invalid {
+        path: PathBuf,
+        line: usize,
+        key: String,
+        message: String,
+    },
+    #[error("{}:{line}: {key}: no {kind} named `{name}`", path.display())]
+    UnknownName {
+        path: PathBuf,
+        line: usize,
+        key: String,
+        kind: &'static str,
+        name: String,
+    },
+    #[error("{}:{line}: {key}: cannot load the mesh", path.display())]
+    Mesh {
+        path: PathBuf,
+        line: usize,
+        key: String,
+        source: ObjError,
+    },
+    #[error("{}:{line}: {key}: cannot load the texture", path.display())]
+    Texture {
+        path: PathBuf,
+        line: usize,
+        key: String,
+        source: TextureError,
+    },
+    /// An OBJ given directly (not through a scene file) that cannot be used.
+    #[error(transparent)]
+    Obj(#[from] ObjError),
+}
+
+fn suggestion_text(s: &Option<String>) -> String {
+    match s {
+        Some(s) => format!(" (did you mean `{s}`?)"),
+        None => String::new(),
+    }
+}
+
+/// A Wavefront OBJ mesh or its MTL material library that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ObjError {
+    #[error("{}: cannot read mesh: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A line that is not valid OBJ or MTL (`element` is its first word).
+    #[error("{}:{line}: {element}: {message}", path.display())]
+    Malformed {
+        path: PathBuf,
+        line: usize,
+        element: String,
+        message: String,
+    },
+    #[error("{}:{line}: {element}: index 0 is not valid (OBJ indices start at 1)", path.display())]
+    ZeroIndex {
+        path: PathBuf,
+        line: usize,
+        element: &'static str,
+    },
+    #[error(
+        "{}:{line}: {element}: index {index} is out of range ({count} {what} defined before this line)",
+        path.display()
+    )]
+    IndexOutOfRange {
+        path: PathBuf,
+        line: usize,
+        element: &'static str,
+        index: i64,
+        count: usize,
+        what: &'static str,
+    },
+    #[error("{}:{line}: {element}: value `{value}` is not a finite number", path.display())]
+    NonFinite {
+        path: PathBuf,
+        line: usize,
+        element: String,
+        value: String,
+    },
+    #[error("{}: the mesh has no faces", path.display())]
+    Empty { path: PathBuf },
+    #[error("{}: more than {max} {what}; raypack numbers them with 32 bits", path.display())]
+    TooLarge {
+        path: PathBuf,
+        what: &'static str,
+        max: u64,
+    },
+    #[error("{}:{line}: mtllib: cannot read material library {}: {source}", path.display(), mtl.display())]
+    MissingMtl {
+        path: PathBuf,
+        line: usize,
+        mtl: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}:{line}: usemtl: no material named `{name}` in the material libraries", path.display())]
+    UnknownMaterial {
+        path: PathBuf,
+        line: usize,
+        name: String,
+    },
+    #[error("{}:{line}: map_Kd: texture {} does not exist", path.display(), texture.display())]
+    MissingTexture {
+        path: PathBuf,
+        line: usize,
+        texture: PathBuf,
+    },
+    /// `tobj` and raypack's own line scan read the file differently (a reader bug, not
+    /// bad input; reported rather than loading a mesh with the wrong prim ids).
+    #[error("{}: readers disagree: {message}", path.display())]
+    Inconsistent { path: PathBuf, message: String },
+    /// `tobj` refused a file that raypack's own line check accepted.
+    #[error("{}: {source}", path.display())]
+    Parse {
+        path: PathBuf,
+        source: tobj::LoadError,
+    },
+}
+
+/// An image texture that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum TextureError {
+    #[error("{}: cannot read texture: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: cannot decode texture: {source}", path.display())]
+    Decode {
+        path: PathBuf,
+        source: image::ImageError,
+    },
+    #[error("{}: texture is {width}x{height}; each side must be 1 to {max} texels", path.display())]
+    Size {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        max: u32,
+    },
+}

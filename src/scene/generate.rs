@@ -1,0 +1,273 @@
+//! Deterministic mesh generators for tests and benchmarks: random triangle soups, a
+//! tessellated sphere, a grid of axis-aligned triangles lying on likely split planes, and
+//! a closed box made of triangles.
+//!
+//! Every generator is a pure function of its arguments (seeded with [`Rng`], a
+//! SplitMix64), so a failing test names a scene that anyone can rebuild. Triangles are
+//! numbered in generation order.
+
+use super::Geometry;
+use glam::Vec3;
+
+/// SplitMix64 (Steele, Lea & Flood 2014): tiny, seedable, and good enough for test
+/// geometry and ray sets.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`, 24 random bits.
+    pub fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f32()
+    }
+
+    /// Uniform in `0..n`.
+    pub fn below(&mut self, n: u32) -> u32 {
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
+    }
+
+    /// A point uniform in the box `[lo, hi]`.
+    pub fn point(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
+        Vec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+
+    /// A unit vector, uniform on the sphere.
+    pub fn unit_vector(&mut self) -> Vec3 {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f32::consts::TAU);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+}
+
+/// Appends triangle `(a, b, c)` with its own three vertices.
+fn push_triangle(g: &mut Geometry, a: Vec3, b: Vec3, c: Vec3) {
+    let i = g.vertices.len() as u32;
+    g.vertices.extend([a, b, c]);
+    g.triangles.push([i, i + 1, i + 2]);
+}
+
+/// `count` triangles scattered in the unit cube `[0, 1]^3`, of sizes from tiny to about
+/// `max_size`; a few are degenerate (repeated or collinear corners) so builders must
+/// leave them out and keep their ids.
+pub fn random_soup(count: u32, max_size: f32, seed: u64) -> Geometry {
+    let mut rng = Rng::new(seed);
+    let mut g = Geometry::default();
+    for i in 0..count {
+        let a = rng.point(Vec3::ZERO, Vec3::ONE);
+        let size = max_size * rng.f32() * rng.f32();
+        let b = a + rng.unit_vector() * size;
+        let c = if i % 97 == 13 {
+            // Degenerate: collinear with a and b.
+            a + (b - a) * 0.5
+        } else {
+            a + rng.unit_vector() * size
+        };
+        push_triangle(&mut g, a, b, c);
+    }
+    g
+}
+
+/// A UV sphere of `rings` x `segments` quads (split into triangles, the poles as fans),
+/// sharing vertices, so the mesh is closed.
+pub fn tessellated_sphere(center: Vec3, radius: f32, rings: u32, segments: u32) -> Geometry {
+    let rings = rings.max(2);
+    let segments = segments.max(3);
+    let mut g = Geometry::default();
+    g.vertices.push(center + Vec3::Y * radius);
+    for r in 1..rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            let dir = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
+            g.vertices.push(center + dir * radius);
+        }
+    }
+    g.vertices.push(center - Vec3::Y * radius);
+    let south = g.vertices.len() as u32 - 1;
+    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    for s in 0..segments {
+        g.triangles.push([0, ring(1, s + 1), ring(1, s)]);
+    }
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            let (a, b) = (ring(r, s), ring(r, s + 1));
+            let (c, d) = (ring(r + 1, s), ring(r + 1, s + 1));
+            g.triangles.push([a, b, d]);
+            g.triangles.push([a, d, c]);
+        }
+    }
+    for s in 0..segments {
+        g.triangles
+            .push([south, ring(rings - 1, s), ring(rings - 1, s + 1)]);
+    }
+    g
+}
+
+/// Axis-aligned triangles on the integer lattice of `[0, n]^3`: on every lattice plane
+/// `x = i`, `y = j` and `z = k`, each unit square of a checkerboard pattern is split into
+/// two triangles. Every triangle lies exactly on a plane a SAH builder will want to split
+/// at, and its edges lie on other such planes, so the set stresses planar events, ties
+/// and rays that run inside split planes. Coplanar duplicates (the same square twice,
+/// with the other diagonal) test equal-`t` ties.
+pub fn axis_aligned_grid(n: u32) -> Geometry {
+    let mut g = Geometry::default();
+    let f = |v: u32| v as f32;
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for level in 0..=n {
+            for i in 0..n {
+                for j in 0..n {
+                    if (i + j + level) % 2 != 0 {
+                        continue;
+                    }
+                    let corner = |du: u32, dv: u32| {
+                        let mut p = Vec3::ZERO;
+                        p[axis] = f(level);
+                        p[u] = f(i + du);
+                        p[v] = f(j + dv);
+                        p
+                    };
+                    let (p00, p10, p01, p11) =
+                        (corner(0, 0), corner(1, 0), corner(0, 1), corner(1, 1));
+                    push_triangle(&mut g, p00, p10, p11);
+                    push_triangle(&mut g, p00, p11, p01);
+                    if (i * 7 + j * 3 + level) % 5 == 0 {
+                        push_triangle(&mut g, p10, p11, p01);
+                        push_triangle(&mut g, p10, p01, p00);
+                    }
+                }
+            }
+        }
+    }
+    g
+}
+
+/// The closed surface of the box `[0, n]^3`, each face an `n` x `n` grid of unit squares
+/// split into two triangles, with shared vertices on the integer lattice (so on split
+/// planes). Triangles face outward.
+pub fn closed_box(n: u32) -> Geometry {
+    let n = n.max(1);
+    let mut g = Geometry::default();
+    let mut index = std::collections::HashMap::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0, n] {
+            for i in 0..n {
+                for j in 0..n {
+                    let mut corner = |du: u32, dv: u32| {
+                        let mut p = [0u32; 3];
+                        p[axis] = side;
+                        p[u] = i + du;
+                        p[v] = j + dv;
+                        *index.entry(p).or_insert_with(|| {
+                            g.vertices
+                                .push(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+                            g.vertices.len() as u32 - 1
+                        })
+                    };
+                    let (a, b, c, d) = (corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1));
+                    // (u x v) = +axis: counter-clockwise in (u, v) faces +axis.
+                    if side == n {
+                        g.triangles.push([a, b, c]);
+                        g.triangles.push([a, c, d]);
+                    } else {
+                        g.triangles.push([a, c, b]);
+                        g.triangles.push([a, d, c]);
+                    }
+                }
+            }
+        }
+    }
+    g
+}
+
+/// Concatenates meshes; the triangles of `parts[i]` follow those of `parts[i - 1]`.
+pub fn merge(parts: &[Geometry]) -> Geometry {
+    let mut g = Geometry::default();
+    for p in parts {
+        let base = g.vertices.len() as u32;
+        g.vertices.extend_from_slice(&p.vertices);
+        g.triangles
+            .extend(p.triangles.iter().map(|t| t.map(|i| i + base)));
+        g.spheres.extend_from_slice(&p.spheres);
+        g.boxes.extend_from_slice(&p.boxes);
+        g.planes.extend_from_slice(&p.planes);
+    }
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generators_are_deterministic_and_sized() {
+        let a = random_soup(500, 0.1, 7);
+        let b = random_soup(500, 0.1, 7);
+        assert_eq!(a.vertices, b.vertices);
+        assert_eq!(a.triangles.len(), 500);
+        assert_ne!(random_soup(500, 0.1, 8).vertices, a.vertices);
+        let s = tessellated_sphere(Vec3::ZERO, 1.0, 8, 12);
+        assert_eq!(s.triangles.len(), 2 * 12 + 2 * 12 * 6);
+        for v in &s.vertices {
+            assert!((v.length() - 1.0).abs() < 1e-5);
+        }
+        assert_eq!(closed_box(3).triangles.len(), 6 * 9 * 2);
+        assert_eq!(closed_box(3).vertices.len(), 4 * 4 * 4 - 2 * 2 * 2);
+    }
+
+    #[test]
+    fn closed_meshes_have_every_edge_twice_in_opposite_directions() {
+        for g in [tessellated_sphere(Vec3::ONE, 2.0, 6, 9), closed_box(2)] {
+            let mut edges = std::collections::HashMap::new();
+            for t in &g.triangles {
+                for e in 0..3 {
+                    *edges.entry((t[e], t[(e + 1) % 3])).or_insert(0) += 1;
+                }
+            }
+            for (&(a, b), &count) in &edges {
+                assert_eq!(count, 1, "edge {a}-{b} used twice in one direction");
+                assert_eq!(edges.get(&(b, a)), Some(&1), "edge {a}-{b} is open");
+            }
+        }
+    }
+
+    #[test]
+    fn closed_box_faces_outward() {
+        let g = closed_box(2);
+        let centre = Vec3::splat(1.0);
+        for i in 0..g.triangles.len() as u32 {
+            let [a, b, c] = g.triangle(i);
+            let n = (b - a).cross(c - a);
+            assert!(
+                n.dot((a + b + c) / 3.0 - centre) > 0.0,
+                "triangle {i} faces in"
+            );
+        }
+    }
+}

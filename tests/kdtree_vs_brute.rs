@@ -1,0 +1,333 @@
+//! The kd-tree against the brute-force oracle, ray by ray: the same closest hit (same
+//! primitive, `t`, `u`, `v` bit-identical) and the same any-hit answer, on generated
+//! stress meshes and the benchmark scenes; plus determinism and parallel == serial.
+
+mod common;
+
+use common::{camera_rays, random_rays, shared_scene};
+use glam::Vec3;
+use raypack::accel::Accel;
+use raypack::accel::brute::BruteForce;
+use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::ray::Ray;
+use raypack::scene::generate::{self, Rng};
+use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
+
+fn build_checked(g: &Geometry, params: &BuildParams) -> KdTree {
+    let tree = KdTree::build_with(g, params);
+    if let Err(e) = tree.validate() {
+        panic!("invalid tree: {e}");
+    }
+    tree
+}
+
+fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
+    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+}
+
+/// Asserts closest-hit equality for every ray, and any-hit equality for each ray cut
+/// short before, at and after its hit (shadow rays). Returns the number of hits.
+fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -> usize {
+    let mut hits = 0;
+    let mut rng = Rng::new(rays.len() as u64);
+    for (i, ray) in rays.iter().enumerate() {
+        let want = brute.intersect(ray);
+        let got = tree.intersect(ray);
+        assert_eq!(
+            bits(got),
+            bits(want),
+            "{what}: ray {i} {ray:?}\n  kd-tree {got:?}\n  brute   {want:?}"
+        );
+        let t_hit = want.map_or(1.0, |h| h.t);
+        hits += want.is_some() as usize;
+        for t_max in [
+            t_hit * rng.range(0.2, 1.0),
+            t_hit,
+            t_hit * rng.range(1.0, 2.0),
+        ] {
+            let shadow = Ray { t_max, ..*ray };
+            assert_eq!(
+                tree.occluded(&shadow),
+                brute.occluded(&shadow),
+                "{what}: shadow ray {i} {shadow:?}"
+            );
+        }
+    }
+    hits
+}
+
+/// Rays built to hit the tree's weak spots: origins exactly on split planes (some lying
+/// in the plane, with +0.0 or -0.0 there), axis-parallel rays through lattice points,
+/// and rays aimed exactly at triangle corners and edge midpoints.
+fn adversarial_rays(tree: &KdTree, g: &Geometry, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let b = g.bounds();
+    let splits: Vec<(usize, f32)> = tree
+        .nodes()
+        .iter()
+        .filter(|n| !n.is_leaf())
+        .map(|n| (n.axis(), n.split))
+        .collect();
+    let mut rays = Vec::with_capacity(count);
+    while rays.len() < count {
+        let kind = rays.len() % 4;
+        let mut org = rng.point(b.min, b.max);
+        let mut dir = rng.unit_vector();
+        match kind {
+            0 if !splits.is_empty() => {
+                let (axis, split) = splits[rng.below(splits.len() as u32) as usize];
+                org[axis] = split;
+                if rng.below(2) == 0 {
+                    dir[axis] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
+                }
+            }
+            1 => {
+                // Lattice origin (the grid generators' planes), axis-parallel direction.
+                org = org.round();
+                dir = Vec3::ZERO;
+                for a in 0..3 {
+                    dir[a] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
+                }
+                let a = rng.below(3) as usize;
+                dir[a] = if rng.below(2) == 0 { 1.0 } else { -1.0 };
+                if rng.below(3) == 0 {
+                    org[(a + 1) % 3] += 0.5;
+                }
+            }
+            _ if !g.triangles.is_empty() => {
+                let [p, q, r] = g.triangle(rng.below(g.triangles.len() as u32));
+                let target = if kind == 2 { p } else { (q + r) * 0.5 };
+                let from = target - rng.unit_vector() * (b.diagonal() * rng.range(0.1, 1.0));
+                org = from;
+                dir = target - from;
+            }
+            _ => {}
+        }
+        let len = dir.length();
+        if len > 0.0 {
+            rays.push(Ray::new(org, dir / len, 0.0, f32::INFINITY));
+        }
+    }
+    rays
+}
+
+/// Builds `g`, checks it, and compares the tree with brute force on random and
+/// adversarial rays and on the camera rays of `camera` (64 x 48).
+fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what: &str) {
+    let tree = build_checked(g, &BuildParams::default());
+    let brute = BruteForce::new(g);
+    let b = g.bounds();
+    let b = if b.is_empty() {
+        Aabb::new(Vec3::splat(-1.0), Vec3::ONE)
+    } else {
+        b
+    };
+    let mut rays = random_rays(b.min, b.max, ray_count, seed);
+    rays.extend(adversarial_rays(&tree, g, ray_count, seed + 1));
+    rays.extend(camera_rays(camera, 64, 48, 1));
+    let hits = assert_matches(&tree, &brute, &rays, what);
+    if g.bounded_count() > 0 {
+        assert!(
+            hits > rays.len() / 20,
+            "{what}: only {hits} hits, rays miss the scene"
+        );
+    }
+}
+
+fn looking_at(g: &Geometry, from: Vec3) -> Camera {
+    let b = g.bounds();
+    let centre = (b.min + b.max) * 0.5;
+    Camera {
+        eye: centre + from * b.diagonal(),
+        target: centre,
+        up: Vec3::Y,
+        vfov_deg: 50.0,
+    }
+}
+
+#[test]
+fn random_soups_match_brute_force() {
+    for (count, size, seed) in [
+        (1, 0.5, 1),
+        (40, 0.5, 2),
+        (2_000, 0.1, 3),
+        (12_000, 0.03, 4),
+    ] {
+        let g = generate::random_soup(count, size, seed);
+        let camera = looking_at(&g, Vec3::new(0.3, 0.4, -1.0));
+        check_scene(&g, &camera, seed, 1_500, &format!("soup {count}"));
+    }
+}
+
+#[test]
+fn tessellated_sphere_matches_brute_force() {
+    let g = generate::tessellated_sphere(Vec3::new(1.0, 2.0, 3.0), 2.0, 48, 64);
+    let camera = looking_at(&g, Vec3::new(0.0, 0.2, -1.0));
+    check_scene(&g, &camera, 11, 3_000, "sphere");
+}
+
+#[test]
+fn axis_aligned_grid_on_split_planes_matches_brute_force() {
+    let g = generate::axis_aligned_grid(6);
+    let camera = looking_at(&g, Vec3::new(0.7, 0.5, -1.0));
+    check_scene(&g, &camera, 21, 4_000, "grid");
+    // Axis-aligned cameras: rays in lattice planes, running along the triangles' edges.
+    let camera = Camera {
+        eye: Vec3::new(3.0, 3.0, -10.0),
+        target: Vec3::new(3.0, 3.0, 0.0),
+        up: Vec3::Y,
+        vfov_deg: 40.0,
+    };
+    check_scene(&g, &camera, 22, 500, "grid, straight camera");
+}
+
+#[test]
+fn closed_box_matches_brute_force() {
+    let g = generate::closed_box(8);
+    let camera = looking_at(&g, Vec3::new(0.1, 0.1, -0.2));
+    check_scene(&g, &camera, 31, 3_000, "closed box");
+}
+
+#[test]
+fn spheres_boxes_planes_and_triangles_match_brute_force() {
+    let mut g = generate::merge(&[
+        generate::random_soup(3_000, 0.1, 41),
+        generate::tessellated_sphere(Vec3::new(0.5, 0.5, 0.5), 0.3, 12, 16),
+    ]);
+    let mut rng = Rng::new(42);
+    for _ in 0..300 {
+        g.spheres.push(Sphere {
+            center: rng.point(Vec3::ZERO, Vec3::ONE),
+            radius: rng.range(0.001, 0.05),
+        });
+        let lo = rng.point(Vec3::ZERO, Vec3::ONE);
+        let mut hi = lo + rng.point(Vec3::ZERO, Vec3::splat(0.05));
+        if rng.below(4) == 0 {
+            hi.y = lo.y; // a flat box
+        }
+        g.boxes.push(Aabb::new(lo, hi));
+    }
+    g.planes.push(Plane {
+        normal: Vec3::Y,
+        offset: -0.25,
+    });
+    let camera = looking_at(&g, Vec3::new(0.2, 0.5, -1.0));
+    check_scene(&g, &camera, 43, 3_000, "mixed primitives");
+}
+
+#[test]
+fn empty_and_planes_only_scenes() {
+    let mut g = Geometry::default();
+    let camera = Camera {
+        eye: Vec3::new(0.0, 1.0, -5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov_deg: 60.0,
+    };
+    let tree = build_checked(&g, &BuildParams::default());
+    assert!(tree.intersect(&camera_rays(&camera, 4, 4, 1)[0]).is_none());
+    g.planes.push(Plane {
+        normal: Vec3::Y,
+        offset: 0.0,
+    });
+    let tree = build_checked(&g, &BuildParams::default());
+    let brute = BruteForce::new(&g);
+    let rays = camera_rays(&camera, 32, 32, 1);
+    let hits = assert_matches(&tree, &brute, &rays, "plane only");
+    assert!(hits > 0 && hits < rays.len());
+    // Only degenerate triangles: they stay out of the tree and are never hit.
+    let g = Geometry {
+        vertices: vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+        triangles: vec![[0, 1, 2], [0, 0, 1]],
+        ..Geometry::default()
+    };
+    let tree = build_checked(&g, &BuildParams::default());
+    assert!(tree.prim_indices().is_empty());
+}
+
+#[test]
+fn build_is_deterministic_and_parallel_equals_serial() {
+    let g = generate::merge(&[
+        generate::random_soup(30_000, 0.05, 51),
+        generate::axis_aligned_grid(5),
+    ]);
+    let serial = BuildParams {
+        parallel: false,
+        ..BuildParams::default()
+    };
+    let parallel = BuildParams {
+        parallel: true,
+        parallel_min_prims: 64,
+        ..BuildParams::default()
+    };
+    let a = build_checked(&g, &serial);
+    let b = build_checked(&g, &serial);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("thread pool");
+    let c = pool.install(|| build_checked(&g, &parallel));
+    let node_bits = |t: &KdTree| -> Vec<(u32, bool, u32)> {
+        t.nodes()
+            .iter()
+            .map(|n| (n.split.to_bits(), n.is_leaf(), n.children()))
+            .collect()
+    };
+    assert!(
+        a.nodes().len() > 1000,
+        "tree too small to exercise the parallel build"
+    );
+    for (other, what) in [(&b, "second serial build"), (&c, "parallel build")] {
+        assert!(node_bits(&a) == node_bits(other), "{what}: nodes differ");
+        assert!(a.leaves() == other.leaves(), "{what}: leaves differ");
+        assert!(
+            a.prim_indices() == other.prim_indices(),
+            "{what}: indices differ"
+        );
+    }
+}
+
+/// Camera rays of a benchmark scene (every `stride`-th pixel of 1024x768) and shadow
+/// rays toward a point above the scene, against brute force.
+fn check_shared_scene(name: &str, stride: usize) {
+    let (g, camera) = shared_scene(name);
+    let tree = build_checked(&g, &BuildParams::default());
+    let brute = BruteForce::new(&g);
+    let rays = camera_rays(&camera, 1024, 768, stride);
+    let hits = assert_matches(&tree, &brute, &rays, name);
+    assert!(
+        hits > rays.len() / 10,
+        "{name}: only {hits} of {} rays hit",
+        rays.len()
+    );
+    let b = g.bounds();
+    let light = Vec3::new((b.min.x + b.max.x) * 0.5, b.max.y * 0.9, b.min.z * 0.3);
+    for (i, ray) in rays.iter().enumerate() {
+        let Some(hit) = brute.intersect(ray) else {
+            continue;
+        };
+        let p = ray.at(hit.t);
+        let to_light = light - p;
+        let shadow = Ray::new(
+            p,
+            to_light.normalize(),
+            1e-4 * b.diagonal(),
+            to_light.length(),
+        );
+        assert_eq!(
+            tree.occluded(&shadow),
+            brute.occluded(&shadow),
+            "{name}: shadow ray {i} {shadow:?}"
+        );
+    }
+}
+
+#[test]
+fn bunny_camera_rays_match_brute_force() {
+    check_shared_scene("bunny", 997);
+}
+
+#[test]
+fn cornell_box_camera_rays_match_brute_force() {
+    check_shared_scene("cornell_box", 13);
+}
