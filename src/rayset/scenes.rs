@@ -13,7 +13,7 @@
 
 use super::View;
 use crate::scene::spd::{self, SpdError};
-use crate::scene::{Geometry, ObjError};
+use crate::scene::{Geometry, ObjError, SceneError};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -44,6 +44,8 @@ pub enum BenchSceneError {
     Spd(#[from] SpdError),
     #[error(transparent)]
     Obj(#[from] ObjError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
 }
 
 /// A scene ready to trace: its geometry and the camera of its primary set.
@@ -158,10 +160,9 @@ fn load_obj(path: &Path) -> Result<Geometry, BenchSceneError> {
 
 /// Reads a TOML scene's geometry and camera.
 fn load_toml(path: &Path) -> Result<(Geometry, View), BenchSceneError> {
-    Err(BenchSceneError::Load {
-        path: path.to_path_buf(),
-        message: "this build cannot read TOML scenes yet".into(),
-    })
+    let scene = crate::scene::file::load(path)?;
+    let view = View::from(&scene.camera);
+    Ok((scene.geometry, view))
 }
 
 /// The camera of an OBJ file that is one of the shared scenes, if it is one.

@@ -50,18 +50,15 @@ pub enum SceneError {
         path: PathBuf,
         line: usize,
         key: String,
-        source: ObjError,
+        source: Box<ObjError>,
     },
     #[error("{}:{line}: {key}: cannot load the texture", path.display())]
     Texture {
         path: PathBuf,
         line: usize,
         key: String,
-        source: TextureError,
+        source: Box<TextureError>,
     },
-    /// An OBJ given directly (not through a scene file) that cannot be used.
-    #[error(transparent)]
-    Obj(#[from] ObjError),
 }
 
 fn suggestion_text(s: &Option<String>) -> String {
