@@ -4,14 +4,16 @@
 
 mod common;
 
-use common::{camera_rays, random_rays, shared_scene};
+use common::{
+    adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
+};
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::ray::Ray;
 use raypack::scene::generate::{self, Rng};
-use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
+use raypack::scene::{Aabb, Camera, Geometry, Plane};
 
 fn build_checked(g: &Geometry, params: &BuildParams) -> KdTree {
     let tree = KdTree::build_with(g, params);
@@ -56,61 +58,6 @@ fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -
     hits
 }
 
-/// Rays built to hit the tree's weak spots: origins exactly on split planes (some lying
-/// in the plane, with +0.0 or -0.0 there), axis-parallel rays through lattice points,
-/// and rays aimed exactly at triangle corners and edge midpoints.
-fn adversarial_rays(tree: &KdTree, g: &Geometry, count: usize, seed: u64) -> Vec<Ray> {
-    let mut rng = Rng::new(seed);
-    let b = g.bounds();
-    let splits: Vec<(usize, f32)> = tree
-        .nodes()
-        .iter()
-        .filter(|n| !n.is_leaf())
-        .map(|n| (n.axis(), n.split))
-        .collect();
-    let mut rays = Vec::with_capacity(count);
-    while rays.len() < count {
-        let kind = rays.len() % 4;
-        let mut org = rng.point(b.min, b.max);
-        let mut dir = rng.unit_vector();
-        match kind {
-            0 if !splits.is_empty() => {
-                let (axis, split) = splits[rng.below(splits.len() as u32) as usize];
-                org[axis] = split;
-                if rng.below(2) == 0 {
-                    dir[axis] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
-                }
-            }
-            1 => {
-                // Lattice origin (the grid generators' planes), axis-parallel direction.
-                org = org.round();
-                dir = Vec3::ZERO;
-                for a in 0..3 {
-                    dir[a] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
-                }
-                let a = rng.below(3) as usize;
-                dir[a] = if rng.below(2) == 0 { 1.0 } else { -1.0 };
-                if rng.below(3) == 0 {
-                    org[(a + 1) % 3] += 0.5;
-                }
-            }
-            _ if !g.triangles.is_empty() => {
-                let [p, q, r] = g.triangle(rng.below(g.triangles.len() as u32));
-                let target = if kind == 2 { p } else { (q + r) * 0.5 };
-                let from = target - rng.unit_vector() * (b.diagonal() * rng.range(0.1, 1.0));
-                org = from;
-                dir = target - from;
-            }
-            _ => {}
-        }
-        let len = dir.length();
-        if len > 0.0 {
-            rays.push(Ray::new(org, dir / len, 0.0, f32::INFINITY));
-        }
-    }
-    rays
-}
-
 /// Builds `g`, checks it, and compares the tree with brute force on random and
 /// adversarial rays and on the camera rays of `camera` (64 x 48).
 fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what: &str) {
@@ -131,17 +78,6 @@ fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what:
             hits > rays.len() / 20,
             "{what}: only {hits} hits, rays miss the scene"
         );
-    }
-}
-
-fn looking_at(g: &Geometry, from: Vec3) -> Camera {
-    let b = g.bounds();
-    let centre = (b.min + b.max) * 0.5;
-    Camera {
-        eye: centre + from * b.diagonal(),
-        target: centre,
-        up: Vec3::Y,
-        vfov_deg: 50.0,
     }
 }
 
@@ -190,27 +126,7 @@ fn closed_box_matches_brute_force() {
 
 #[test]
 fn spheres_boxes_planes_and_triangles_match_brute_force() {
-    let mut g = generate::merge(&[
-        generate::random_soup(3_000, 0.1, 41),
-        generate::tessellated_sphere(Vec3::new(0.5, 0.5, 0.5), 0.3, 12, 16),
-    ]);
-    let mut rng = Rng::new(42);
-    for _ in 0..300 {
-        g.spheres.push(Sphere {
-            center: rng.point(Vec3::ZERO, Vec3::ONE),
-            radius: rng.range(0.001, 0.05),
-        });
-        let lo = rng.point(Vec3::ZERO, Vec3::ONE);
-        let mut hi = lo + rng.point(Vec3::ZERO, Vec3::splat(0.05));
-        if rng.below(4) == 0 {
-            hi.y = lo.y; // a flat box
-        }
-        g.boxes.push(Aabb::new(lo, hi));
-    }
-    g.planes.push(Plane {
-        normal: Vec3::Y,
-        offset: -0.25,
-    });
+    let g = mixed_primitives();
     let camera = looking_at(&g, Vec3::new(0.2, 0.5, -1.0));
     check_scene(&g, &camera, 43, 3_000, "mixed primitives");
 }

@@ -3,65 +3,53 @@
 //! compared with `to_bits`, and the primitive id), and inactive lanes, filled with NaN,
 //! must neither hit nor change anything.
 //!
+//! The same holds one level up: the kd-tree's packet traversal returns, lane by lane,
+//! the scalar traversal's closest hit (same primitive, `t`, `u`, `v` bit-identical) and
+//! its any-hit answer, for camera quads, random and shadow packets on the generated
+//! stress meshes and the benchmark scenes of ../shared/scenes.
+//!
 //! Inputs are seeded random rays plus the adversarial set: axis-parallel rays, +-0.0
 //! direction components, rays aimed exactly at vertices and edges, origins on the
 //! surface, mixed direction signs in one packet, and inactive NaN lanes.
 
+mod common;
+
+use common::{
+    adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
+};
 use glam::Vec3;
-use raypack::accel::packet::{HitPacket, LaneHits, RayPacket};
+use raypack::accel::Accel;
+use raypack::accel::kdtree::traverse_packet::packet_split_count;
+use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::accel::packet::{HitPacket, LaneHits, RayPacket, quad_order};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
 use raypack::accel::prims_packet::{
     intersect_box_packet, intersect_plane_packet, intersect_sphere_packet,
 };
 use raypack::accel::triaccel::TriAccel;
 use raypack::ray::{Hit, NO_HIT, Ray};
-use raypack::scene::{Aabb, Plane, Sphere};
+use raypack::scene::generate::{self, Rng};
+use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
 use raypack::simd::{LANES, Mask, Vf, Vu, mask_from_bits};
 
-/// SplitMix64: small, seeded, and the same on every machine.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    fn below(&mut self, n: u32) -> u32 {
-        (self.next_u64() % n as u64) as u32
-    }
-
-    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
-        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-    }
-
-    fn dir(&mut self) -> Vec3 {
-        loop {
-            let d = self.vec(-1.0, 1.0);
-            if d.length_squared() > 1e-4 && d.length_squared() <= 1.0 {
-                return d.normalize();
-            }
-        }
-    }
-
+/// Draws the kernel tests need beyond [`Rng`]'s own.
+trait Draw {
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3;
     /// `0.0` or `-0.0`.
+    fn zero(&mut self) -> f32;
+    /// A unit axis direction with random sign and zeros of random sign.
+    fn axis_dir(&mut self) -> Vec3;
+}
+
+impl Draw for Rng {
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+        self.point(Vec3::splat(lo), Vec3::splat(hi))
+    }
+
     fn zero(&mut self) -> f32 {
         if self.below(2) == 0 { 0.0 } else { -0.0 }
     }
 
-    /// A unit axis direction with random sign and zeros of random sign.
     fn axis_dir(&mut self) -> Vec3 {
         let axis = self.below(3) as usize;
         let mut d = Vec3::new(self.zero(), self.zero(), self.zero());
@@ -207,12 +195,12 @@ fn point_on(rng: &mut Rng, [a, b, c]: [Vec3; 3]) -> Vec3 {
     match rng.below(4) {
         0 => [a, b, c][rng.below(3) as usize],
         1 => {
-            let s = rng.unit();
+            let s = rng.f32();
             let (p, q) = [(a, b), (b, c), (c, a)][rng.below(3) as usize];
             p + (q - p) * s
         }
         _ => {
-            let (mut u, mut v) = (rng.unit(), rng.unit());
+            let (mut u, mut v) = (rng.f32(), rng.f32());
             if u + v > 1.0 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
@@ -230,8 +218,8 @@ fn ray_at(rng: &mut Rng, target: Vec3) -> Ray {
             Ray::new(target - d * rng.range(0.5, 3.0), d, t_min, t_max)
         }
         // Starting on the surface.
-        1 => Ray::new(target, rng.dir(), t_min.max(0.0), t_max),
-        2 => Ray::new(rng.vec(-3.0, 3.0), rng.dir(), t_min, t_max),
+        1 => Ray::new(target, rng.unit_vector(), t_min.max(0.0), t_max),
+        2 => Ray::new(rng.vec(-3.0, 3.0), rng.unit_vector(), t_min, t_max),
         _ => {
             let org = rng.vec(-3.0, 3.0);
             let mut d = (target - org).normalize();
@@ -255,7 +243,7 @@ fn run_kernel<P: std::fmt::Debug>(
     scalar: impl Fn(&P, &Ray) -> Option<(f32, f32, f32)>,
     packet_test: impl Fn(&P, &RayPacket) -> LaneHits,
 ) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut hits = 0;
     for n in 0..PACKETS {
         let p = prim(&mut rng, n);
@@ -298,7 +286,7 @@ fn sphere_packet_matches_scalar() {
             radius: rng.range(0.05, 1.5),
         },
         |rng, s| {
-            let on = s.center + rng.dir() * s.radius;
+            let on = s.center + rng.unit_vector() * s.radius;
             match rng.below(3) {
                 // Grazing: tangent to the sphere at `on`.
                 0 => {
@@ -356,7 +344,7 @@ fn plane_packet_matches_scalar() {
             normal: if rng.below(2) == 0 {
                 rng.axis_dir()
             } else {
-                rng.dir()
+                rng.unit_vector()
             },
             offset: rng.range(-1.0, 1.0),
         },
@@ -395,4 +383,284 @@ fn merge_breaks_ties_toward_the_smaller_id() {
     assert_eq!(best.prim.to_array(), [4; LANES], "equal t, smaller id wins");
     best.merge(&at(1.0), NO_HIT - 1);
     assert_eq!(best.prim.to_array(), [NO_HIT - 1; LANES], "smaller t wins");
+}
+
+fn show_hit(h: Option<Hit>) -> String {
+    h.map_or("miss".into(), |h| {
+        format!("prim {} t {:?} u {:?} v {:?}", h.prim, h.t, h.u, h.v)
+    })
+}
+
+fn hit_bits(h: Option<Hit>) -> Option<[u32; 4]> {
+    h.map(|h| [h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()])
+}
+
+/// Closest hits and any-hit answers of `tree`'s packet path against its scalar path,
+/// for every active lane of every packet. Returns the number of lanes that hit.
+fn assert_tree_matches(tree: &KdTree, packets: &[[Option<Ray>; LANES]], what: &str) -> usize {
+    let mut hits = 0;
+    for (n, rays) in packets.iter().enumerate() {
+        let p = packet(rays);
+        let got = tree.intersect_packet(&p);
+        let occluded = tree.occluded_packet(&p);
+        for (i, r) in rays.iter().enumerate() {
+            let lane = got.lane(i);
+            let Some(r) = r else {
+                assert_eq!(
+                    lane.prim, NO_HIT,
+                    "{what}: inactive lane {i} of packet {n} hit"
+                );
+                assert_eq!(occluded & (1 << i), 0, "{what}: inactive lane {i} occluded");
+                continue;
+            };
+            let want = tree.intersect(r);
+            let have = lane.is_hit().then_some(lane);
+            hits += have.is_some() as usize;
+            assert_eq!(
+                hit_bits(have),
+                hit_bits(want),
+                "{what}: packet {n} lane {i}\n  ray: {}\n  scalar: {}\n  packet: {}",
+                show(r),
+                show_hit(want),
+                show_hit(have)
+            );
+            assert_eq!(
+                occluded & (1 << i) != 0,
+                tree.occluded(r),
+                "{what}: any-hit, packet {n} lane {i}\n  ray: {}",
+                show(r)
+            );
+        }
+    }
+    hits
+}
+
+/// `rays` four at a time; with `rng`, some lanes made inactive (NaN).
+fn packets_of(rays: &[Ray], mut rng: Option<&mut Rng>) -> Vec<[Option<Ray>; LANES]> {
+    rays.chunks(LANES)
+        .map(|c| {
+            std::array::from_fn(|i| {
+                let drop = rng.as_mut().is_some_and(|g| g.below(5) == 0);
+                c.get(i).copied().filter(|_| !drop)
+            })
+        })
+        .collect()
+}
+
+/// Camera rays as 2x2 quads in packet order.
+fn quad_packets(camera: &Camera, width: u32, height: u32, stride: usize) -> Vec<[Ray; LANES]> {
+    let frame = camera.frame(width, height);
+    quad_order(width, height)
+        .into_iter()
+        .step_by(stride)
+        .map(|(x, y)| RayPacket::camera_quad(&frame, x, y))
+        .collect()
+}
+
+/// Shadow packets: from each quad's hits toward `light` (lanes that missed are
+/// inactive), and from one hit point toward four points of an area light around it.
+fn shadow_packets(
+    tree: &KdTree,
+    quads: &[[Ray; LANES]],
+    light: Vec3,
+    eps: f32,
+) -> Vec<[Option<Ray>; LANES]> {
+    let shadow = |p: Vec3, to: Vec3| {
+        let d = to - p;
+        Ray::new(p, d.normalize(), eps, d.length())
+    };
+    let mut out = Vec::new();
+    for (n, quad) in quads.iter().enumerate() {
+        let hits = quad.map(|r| tree.intersect(&r).map(|h| r.at(h.t)));
+        out.push(std::array::from_fn(|i| hits[i].map(|p| shadow(p, light))));
+        if let Some(p) = hits[n % LANES] {
+            let size = eps * 1e4;
+            out.push(std::array::from_fn(|i| {
+                let corner = Vec3::new((i & 1) as f32 - 0.5, 0.0, (i >> 1) as f32 - 0.5);
+                Some(shadow(p, light + corner * size))
+            }));
+        }
+    }
+    out
+}
+
+/// Coherent packets: one origin, four directions close to one another (so most agree on
+/// every sign, and some straddle an axis).
+fn coherent_packets(b: &Aabb, count: usize, rng: &mut Rng) -> Vec<[Option<Ray>; LANES]> {
+    (0..count)
+        .map(|_| {
+            let org = Vec3::new(
+                rng.range(b.min.x, b.max.x),
+                rng.range(b.min.y, b.max.y),
+                rng.range(b.min.z, b.max.z),
+            );
+            let centre = if rng.below(4) == 0 {
+                rng.axis_dir()
+            } else {
+                rng.unit_vector()
+            };
+            std::array::from_fn(|_| {
+                let d = (centre + rng.vec(-0.02, 0.02)).normalize();
+                Some(Ray::new(org, d, 0.0, f32::INFINITY))
+            })
+        })
+        .collect()
+}
+
+/// Every packet kind on one scene.
+fn check_tree_scene(g: &Geometry, camera: &Camera, seed: u64, count: usize, what: &str) {
+    let tree = KdTree::build_with(g, &BuildParams::default());
+    tree.validate()
+        .unwrap_or_else(|e| panic!("{what}: invalid tree: {e}"));
+    let mut rng = Rng::new(seed);
+    let b = g.bounds();
+    let b = if b.is_empty() {
+        Aabb::new(Vec3::splat(-1.0), Vec3::ONE)
+    } else {
+        b
+    };
+    let quads = quad_packets(camera, 128, 96, 1);
+    let camera_packets: Vec<_> = quads.iter().map(|q| q.map(Some)).collect();
+    let hits = assert_tree_matches(&tree, &camera_packets, &format!("{what}, camera quads"));
+    if g.bounded_count() > 0 {
+        assert!(hits > quads.len() / 20, "{what}: only {hits} camera hits");
+    }
+    let splits_before = packet_split_count();
+    let random = random_rays(b.min, b.max, count, seed);
+    assert_tree_matches(
+        &tree,
+        &packets_of(&random, Some(&mut rng)),
+        &format!("{what}, random"),
+    );
+    assert!(
+        packet_split_count() > splits_before,
+        "{what}: no mixed-sign packet was split"
+    );
+    let adversarial = adversarial_rays(&tree, g, count, seed + 1);
+    let packets = packets_of(&adversarial, Some(&mut rng));
+    assert_tree_matches(&tree, &packets, &format!("{what}, adversarial"));
+    let coherent = coherent_packets(&b, count / LANES, &mut rng);
+    assert_tree_matches(&tree, &coherent, &format!("{what}, coherent"));
+    let light = Vec3::new(
+        (b.min.x + b.max.x) * 0.5,
+        b.max.y + b.diagonal() * 0.3,
+        b.min.z,
+    );
+    let shadows = shadow_packets(&tree, &quads, light, 1e-4 * b.diagonal());
+    assert_tree_matches(&tree, &shadows, &format!("{what}, shadows"));
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_random_soups() {
+    for (count, size, seed) in [
+        (1, 0.5, 1),
+        (40, 0.5, 2),
+        (2_000, 0.1, 3),
+        (20_000, 0.03, 4),
+    ] {
+        let g = generate::random_soup(count, size, seed);
+        let camera = looking_at(&g, Vec3::new(0.3, 0.4, -1.0));
+        check_tree_scene(&g, &camera, seed, 4_000, &format!("soup {count}"));
+    }
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_tessellated_sphere_and_closed_box() {
+    let g = generate::tessellated_sphere(Vec3::new(1.0, 2.0, 3.0), 2.0, 48, 64);
+    check_tree_scene(
+        &g,
+        &looking_at(&g, Vec3::new(0.0, 0.2, -1.0)),
+        11,
+        8_000,
+        "sphere",
+    );
+    let g = generate::closed_box(8);
+    check_tree_scene(
+        &g,
+        &looking_at(&g, Vec3::new(0.1, 0.1, -0.2)),
+        31,
+        8_000,
+        "closed box",
+    );
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_axis_aligned_grid() {
+    let g = generate::axis_aligned_grid(6);
+    check_tree_scene(
+        &g,
+        &looking_at(&g, Vec3::new(0.7, 0.5, -1.0)),
+        21,
+        8_000,
+        "grid",
+    );
+    // Rays in lattice planes, running along the triangles' edges.
+    let camera = Camera {
+        eye: Vec3::new(3.0, 3.0, -10.0),
+        target: Vec3::new(3.0, 3.0, 0.0),
+        up: Vec3::Y,
+        vfov_deg: 40.0,
+    };
+    check_tree_scene(&g, &camera, 22, 2_000, "grid, straight camera");
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_mixed_primitives_and_planes() {
+    let mut g = mixed_primitives();
+    g.planes.push(Plane {
+        normal: Vec3::new(1.0, 0.0, 1.0).normalize(),
+        offset: 2.0,
+    });
+    let camera = looking_at(&g, Vec3::new(0.2, 0.5, -1.0));
+    check_tree_scene(&g, &camera, 43, 8_000, "mixed primitives");
+    // Planes only: the tree is empty and every hit comes from beside it.
+    let planes = Geometry {
+        planes: g.planes.clone(),
+        ..Geometry::default()
+    };
+    check_tree_scene(&planes, &camera, 44, 2_000, "planes only");
+}
+
+/// Camera quads (every `stride`-th) and shadow packets of a benchmark scene.
+fn check_shared_scene(name: &str, stride: usize) {
+    let (g, camera) = shared_scene(name);
+    let tree = KdTree::build_with(&g, &BuildParams::default());
+    tree.validate()
+        .unwrap_or_else(|e| panic!("{name}: invalid tree: {e}"));
+    let quads = quad_packets(&camera, 1024, 768, stride);
+    let packets: Vec<_> = quads.iter().map(|q| q.map(Some)).collect();
+    let hits = assert_tree_matches(&tree, &packets, &format!("{name}, camera quads"));
+    assert!(hits > quads.len() / 10, "{name}: only {hits} camera hits");
+    let b = g.bounds();
+    let light = Vec3::new((b.min.x + b.max.x) * 0.5, b.max.y * 0.9, b.min.z * 0.3);
+    let shadows = shadow_packets(&tree, &quads, light, 1e-4 * b.diagonal());
+    assert_tree_matches(&tree, &shadows, &format!("{name}, shadows"));
+    let mut rng = Rng::new(name.len() as u64);
+    let random = camera_rays(&camera, 64, 48, 1)
+        .into_iter()
+        .map(|r| {
+            let from = r.at(rng.range(0.0, b.diagonal() * 0.5));
+            Ray::new(from, rng.unit_vector(), 0.0, f32::INFINITY)
+        })
+        .collect::<Vec<_>>();
+    assert_tree_matches(
+        &tree,
+        &packets_of(&random, Some(&mut rng)),
+        &format!("{name}, random"),
+    );
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_cornell_box() {
+    check_shared_scene("cornell_box", 1);
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_bunny() {
+    check_shared_scene("bunny", 3);
+}
+
+#[test]
+fn packet_tree_matches_scalar_on_sponza() {
+    check_shared_scene("sponza", 7);
 }

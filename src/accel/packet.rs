@@ -2,6 +2,7 @@
 //! per lane (Wald 2004, chapter 6). The lane count comes from [`crate::simd::LANES`].
 
 use crate::ray::{Hit, NO_HIT, Ray};
+use crate::scene::CameraFrame;
 use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, select, select_u};
 use glam::Vec3;
 
@@ -49,6 +50,16 @@ impl RayPacket {
         }
     }
 
+    /// The camera rays of the 2x2 pixel quad whose top-left pixel is `(x, y)`, in
+    /// RAYS.md's lane order: `(x, y)`, `(x + 1, y)`, `(x, y + 1)`, `(x + 1, y + 1)`.
+    pub fn camera_quad(frame: &CameraFrame, x: u32, y: u32) -> [Ray; LANES] {
+        let pixel = |i: u32| {
+            let (px, py) = (x + (i & 1), y + (i >> 1));
+            frame.ray(px as f32 + 0.5, py as f32 + 0.5)
+        };
+        std::array::from_fn(|i| pixel(i as u32))
+    }
+
     /// Bit `i` set when lane `i` is active.
     #[inline]
     pub fn active_bits(&self) -> u32 {
@@ -68,6 +79,27 @@ impl RayPacket {
             self.t_max.as_array()[i],
         ))
     }
+}
+
+/// Top-left pixels of the 2x2 quads of a `width` x `height` image in RAYS.md's packet
+/// order: quads row-major inside 16x16 tiles, tiles row-major. Edge tiles are cut to the
+/// image; `width` and `height` must be even.
+pub fn quad_order(width: u32, height: u32) -> Vec<(u32, u32)> {
+    assert!(
+        width.is_multiple_of(2) && height.is_multiple_of(2),
+        "quads need an even image size"
+    );
+    let mut quads = Vec::with_capacity((width * height / 4) as usize);
+    for ty in (0..height).step_by(16) {
+        for tx in (0..width).step_by(16) {
+            for y in (ty..(ty + 16).min(height)).step_by(2) {
+                for x in (tx..(tx + 16).min(width)).step_by(2) {
+                    quads.push((x, y));
+                }
+            }
+        }
+    }
+    quads
 }
 
 /// One primitive's hits against a packet: lane `i` hit where `mask` is set (never for an
@@ -148,5 +180,26 @@ impl HitPacket {
             v: self.v.as_array()[i],
             prim: self.prim.as_array()[i],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quad_order_covers_every_pixel_once_in_tiles() {
+        let quads = quad_order(48, 20);
+        let mut seen = vec![0u8; 48 * 20];
+        for &(x, y) in &quads {
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                seen[((y + dy) * 48 + x + dx) as usize] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&n| n == 1));
+        // The first tile's 64 quads come before the second tile's.
+        assert_eq!(quads[7], (14, 0));
+        assert_eq!(quads[8], (0, 2));
+        assert_eq!(quads[64], (16, 0));
     }
 }

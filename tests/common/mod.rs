@@ -4,9 +4,10 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
+use raypack::accel::kdtree::KdTree;
 use raypack::ray::Ray;
-use raypack::scene::generate::Rng;
-use raypack::scene::{Camera, Geometry};
+use raypack::scene::generate::{self, Rng};
+use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
 use std::path::{Path, PathBuf};
 
 /// `../shared/scenes`, relative to the crate root. Panics, naming the path, when absent:
@@ -111,4 +112,98 @@ pub fn random_rays(lo: Vec3, hi: Vec3, count: usize, seed: u64) -> Vec<Ray> {
             Ray::new(org, dir, 0.0, f32::INFINITY)
         })
         .collect()
+}
+
+/// Rays built to hit the tree's weak spots: origins exactly on split planes (some lying
+/// in the plane, with +0.0 or -0.0 there), axis-parallel rays through lattice points,
+/// and rays aimed exactly at triangle corners and edge midpoints.
+pub fn adversarial_rays(tree: &KdTree, g: &Geometry, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let b = g.bounds();
+    let splits: Vec<(usize, f32)> = tree
+        .nodes()
+        .iter()
+        .filter(|n| !n.is_leaf())
+        .map(|n| (n.axis(), n.split))
+        .collect();
+    let mut rays = Vec::with_capacity(count);
+    while rays.len() < count {
+        let kind = rays.len() % 4;
+        let mut org = rng.point(b.min, b.max);
+        let mut dir = rng.unit_vector();
+        match kind {
+            0 if !splits.is_empty() => {
+                let (axis, split) = splits[rng.below(splits.len() as u32) as usize];
+                org[axis] = split;
+                if rng.below(2) == 0 {
+                    dir[axis] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
+                }
+            }
+            1 => {
+                // Lattice origin (the grid generators' planes), axis-parallel direction.
+                org = org.round();
+                dir = Vec3::ZERO;
+                for a in 0..3 {
+                    dir[a] = if rng.below(2) == 0 { 0.0 } else { -0.0 };
+                }
+                let a = rng.below(3) as usize;
+                dir[a] = if rng.below(2) == 0 { 1.0 } else { -1.0 };
+                if rng.below(3) == 0 {
+                    org[(a + 1) % 3] += 0.5;
+                }
+            }
+            _ if !g.triangles.is_empty() => {
+                let [p, q, r] = g.triangle(rng.below(g.triangles.len() as u32));
+                let target = if kind == 2 { p } else { (q + r) * 0.5 };
+                let from = target - rng.unit_vector() * (b.diagonal() * rng.range(0.1, 1.0));
+                org = from;
+                dir = target - from;
+            }
+            _ => {}
+        }
+        let len = dir.length();
+        if len > 0.0 {
+            rays.push(Ray::new(org, dir / len, 0.0, f32::INFINITY));
+        }
+    }
+    rays
+}
+
+/// A camera at `from` (in scene diagonals) from the centre of `g`, looking at it.
+pub fn looking_at(g: &Geometry, from: Vec3) -> Camera {
+    let b = g.bounds();
+    let centre = (b.min + b.max) * 0.5;
+    Camera {
+        eye: centre + from * b.diagonal(),
+        target: centre,
+        up: Vec3::Y,
+        vfov_deg: 50.0,
+    }
+}
+
+/// Triangles (a soup and a small sphere) with 300 spheres, 300 boxes (some flat) and
+/// a ground plane.
+pub fn mixed_primitives() -> Geometry {
+    let mut g = generate::merge(&[
+        generate::random_soup(3_000, 0.1, 41),
+        generate::tessellated_sphere(Vec3::new(0.5, 0.5, 0.5), 0.3, 12, 16),
+    ]);
+    let mut rng = Rng::new(42);
+    for _ in 0..300 {
+        g.spheres.push(Sphere {
+            center: rng.point(Vec3::ZERO, Vec3::ONE),
+            radius: rng.range(0.001, 0.05),
+        });
+        let lo = rng.point(Vec3::ZERO, Vec3::ONE);
+        let mut hi = lo + rng.point(Vec3::ZERO, Vec3::splat(0.05));
+        if rng.below(4) == 0 {
+            hi.y = lo.y; // a flat box
+        }
+        g.boxes.push(Aabb::new(lo, hi));
+    }
+    g.planes.push(Plane {
+        normal: Vec3::Y,
+        offset: -0.25,
+    });
+    g
 }

@@ -12,6 +12,7 @@
 pub mod build;
 pub mod node;
 pub mod traverse;
+pub mod traverse_packet;
 
 use super::Prims;
 use crate::scene::Aabb;

@@ -172,4 +172,12 @@ impl Accel for KdTree {
         let mut unused = Hit::MISS;
         self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
     }
+
+    fn intersect_packet(&self, rays: &crate::accel::RayPacket) -> crate::accel::HitPacket {
+        KdTree::intersect_packet(self, rays)
+    }
+
+    fn occluded_packet(&self, rays: &crate::accel::RayPacket) -> u32 {
+        KdTree::occluded_packet(self, rays)
+    }
 }

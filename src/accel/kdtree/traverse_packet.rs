@@ -1,0 +1,273 @@
+//! Stage: accel. Packet kd-tree traversal (Wald 2004, PhD thesis, section 7.3; Wald,
+//! Slusallek, Benthin and Wagner 2001, "Interactive rendering with coherent ray
+//! tracing"): `LANES` rays walk the tree together, one SIMD register per quantity.
+//!
+//! At an inner node every lane computes where it crosses the split plane; the packet
+//! goes near-only, far-only, or near now and far later for all its lanes at once, with a
+//! stack of `(node, lanes, t_near, t_far)` whose intervals are SIMD registers. A lane
+//! rides along masked off where its own interval does not reach the node.
+//!
+//! Invariants, so each lane returns exactly what the scalar traversal
+//! ([`super::traverse`]) returns for its ray:
+//! - Every per-lane quantity (the clipped interval, the split distance and its slack,
+//!   the near/far decisions, the intervals pushed) is computed with the scalar path's
+//!   operations in its order, so a lane is active at exactly the nodes the scalar ray
+//!   visits, with the same interval, in the same front-to-back order.
+//! - Near and far must mean the same child for every lane: the lanes of a packet must
+//!   agree on the sign of each direction component (a zero component has no near side
+//!   and agrees with both). Packets that disagree are split into groups that agree and
+//!   traced one group after the other; [`packet_split_count`] counts them.
+//! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
+//!   [`crate::accel::prims_packet`], bit-identical to the scalar tests, and merge in
+//!   [`crate::ray::Hit::is_closer`] order; a stack entry is dropped for the lanes whose
+//!   best hit lies before its entry distance, as the scalar path does.
+//! - Inactive lanes (NaN or not) only ever appear masked: they never widen a decision,
+//!   and their output lanes are left as they were.
+
+use super::KdTree;
+use super::build::MAX_DEPTH;
+use super::traverse::PLANE_SLACK;
+use crate::accel::packet::{HitPacket, RayPacket};
+use crate::scene::Aabb;
+use crate::simd::{LANES, Mask, Vf, Vu, any, bits, mask_from_bits, none, select, splat};
+use std::cell::Cell;
+
+/// Stack entries: one per level at most, as in the scalar path.
+const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
+
+thread_local! {
+    static PACKET_SPLITS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// Packets traced on this thread whose lanes disagreed on a direction sign and were
+/// split into coherent groups.
+pub fn packet_split_count() -> u64 {
+    PACKET_SPLITS.with(Cell::get)
+}
+
+/// One pending far child: its node, the lanes that need it, and their interval.
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    lanes: Mask,
+    t_near: Vf,
+    t_far: Vf,
+}
+
+/// The smallest float above each lane (`f32::next_up`), used for the scalar path's
+/// leaf limit `next_up(best.t)`.
+#[inline]
+fn next_up(v: Vf) -> Vf {
+    let b = v.to_bits();
+    let one = Vu::splat(1);
+    let up = Vf::from_bits(b + one);
+    let down = Vf::from_bits(b - one);
+    let pos = v.simd_gt(Vf::ZERO) & v.simd_lt(splat(f32::INFINITY));
+    let r = select(pos, up, select(v.simd_lt(Vf::ZERO), down, v));
+    select(v.simd_eq(Vf::ZERO), Vf::from_bits(one), r)
+}
+
+/// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
+/// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it.
+#[inline]
+fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf) {
+    let (mut t0, mut t1) = (rays.t_min, rays.t_max);
+    let mut live = active;
+    for axis in 0..3 {
+        let o = rays.org[axis];
+        let (lo, hi) = (b.min[axis], b.max[axis]);
+        let margin = (splat(lo.abs().max(hi.abs())) + o.abs()) * splat(PLANE_SLACK);
+        let d = rays.dir[axis];
+        let parallel = d.simd_eq(Vf::ZERO);
+        let inside = o.simd_ge(splat(lo) - margin) & o.simd_le(splat(hi) + margin);
+        live &= !parallel | inside;
+        let inv = rays.inv_dir[axis];
+        let slack = margin * inv.abs();
+        let ta = (splat(lo) - o) * inv;
+        let tb = (splat(hi) - o) * inv;
+        let positive = d.simd_gt(Vf::ZERO);
+        let t_lo = select(positive, ta, tb);
+        let t_hi = select(positive, tb, ta);
+        t0 = select(parallel, t0, t0.max(t_lo - slack));
+        t1 = select(parallel, t1, t1.min(t_hi + slack));
+    }
+    (live & t0.simd_le(t1), t0, t1)
+}
+
+/// Lane groups of `active` that agree on every direction sign: one group when the
+/// packet is coherent, else one per sign octant present (zero components count as
+/// positive; they agree with either side).
+#[inline]
+fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
+    let neg = rays.dir.map(|d| bits(d.simd_lt(Vf::ZERO)) & active);
+    let pos = rays.dir.map(|d| bits(d.simd_gt(Vf::ZERO)) & active);
+    let mut groups = [0u32; LANES];
+    if (0..3).all(|a| neg[a] == 0 || pos[a] == 0) {
+        groups[0] = active;
+        return (groups, 1);
+    }
+    PACKET_SPLITS.with(|c| c.set(c.get() + 1));
+    let octant = |lane: u32| (0..3).map(|a| ((neg[a] >> lane) & 1) << a).sum::<u32>();
+    let (mut left, mut count) = (active, 0);
+    while left != 0 {
+        let key = octant(left.trailing_zeros());
+        let group = (0..LANES as u32)
+            .filter(|&i| left & (1 << i) != 0 && octant(i) == key)
+            .fold(0, |g, i| g | (1 << i));
+        groups[count] = group;
+        count += 1;
+        left &= !group;
+    }
+    (groups, count)
+}
+
+impl KdTree {
+    /// Closest hits of the active lanes of `rays` (planes included); inactive lanes get
+    /// [`crate::ray::Hit::MISS`]. Lane by lane, the same hit as
+    /// [`crate::accel::Accel::intersect`], `t`, `u`, `v` bit-identical.
+    pub fn intersect_packet(&self, rays: &RayPacket) -> HitPacket {
+        let mut best = HitPacket::miss();
+        let (groups, count) = coherent_groups(rays, bits(rays.active));
+        for &group in &groups[..count] {
+            self.traverse_packet::<false>(rays, mask_from_bits(group), &mut best);
+        }
+        self.prims
+            .intersect_planes_packet(rays, rays.active, &mut best);
+        best
+    }
+
+    /// Bit `i` set when active lane `i` is occluded between `t_min` and `t_max`; the
+    /// same answer as [`crate::accel::Accel::occluded`] lane by lane.
+    pub fn occluded_packet(&self, rays: &RayPacket) -> u32 {
+        let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
+        let mut best = HitPacket::miss();
+        let rest = bits(rays.active & !by_plane);
+        let (groups, count) = coherent_groups(rays, rest);
+        let mut occluded = bits(by_plane);
+        for &group in &groups[..count] {
+            let lanes = mask_from_bits(group);
+            occluded |= bits(self.traverse_packet::<true>(rays, lanes, &mut best));
+        }
+        occluded
+    }
+
+    /// Walks the tree with the lanes of `active`, which agree on every direction sign.
+    /// Closest hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit
+    /// anything in `(t_min, t_max)`, each lane leaving at its first hit.
+    fn traverse_packet<const ANY_HIT: bool>(
+        &self,
+        rays: &RayPacket,
+        active: Mask,
+        best: &mut HitPacket,
+    ) -> Mask {
+        let (mut lanes, mut t_near, mut t_far) = clip_to_box_packet(&self.bounds, rays, active);
+        let mut occluded = Mask::ZERO;
+        if none(lanes) {
+            return occluded;
+        }
+        // Near is the left child on axes where the group's directions are not negative.
+        let negative = rays.dir.map(|d| any(lanes & d.simd_lt(Vf::ZERO)));
+        let zero = rays.dir.map(|d| d.simd_eq(Vf::ZERO));
+        let mut stack = [Entry {
+            node: 0,
+            lanes: Mask::ZERO,
+            t_near: Vf::ZERO,
+            t_far: Vf::ZERO,
+        }; STACK_SIZE];
+        let mut depth = 0;
+        let mut node = 0u32;
+        loop {
+            let n = self.nodes[node as usize];
+            if !n.is_leaf() {
+                let axis = n.axis();
+                let children = n.children();
+                let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
+                let split = splat(n.split);
+                let margin = (splat(n.split.abs()) + o.abs()) * splat(PLANE_SLACK);
+                let t_split = (split - o) * inv;
+                let slack = margin * inv.abs();
+                let lo = t_split - slack;
+                let hi = t_split + slack;
+                let (near, far) = if negative[axis] {
+                    (children + 1, children)
+                } else {
+                    (children, children + 1)
+                };
+                // Lanes parallel to the plane keep their interval and go to the sides
+                // within `margin` of their origin.
+                let z = zero[axis];
+                let left_only = (o + margin).simd_lt(split);
+                let right_only = (o - margin).simd_gt(split);
+                let (near_only_z, far_only_z) = if negative[axis] {
+                    (right_only, left_only)
+                } else {
+                    (left_only, right_only)
+                };
+                let near_only = select(z, near_only_z, lo.simd_gt(t_far));
+                let far_only = select(z, far_only_z, hi.simd_lt(t_near));
+                // As in the scalar path, near-only wins when both tests pass.
+                let near_lanes = lanes & !(far_only & !near_only);
+                let far_lanes = lanes & !near_only;
+                if none(far_lanes) {
+                    node = near;
+                    lanes = near_lanes;
+                } else if none(near_lanes) {
+                    node = far;
+                    lanes = far_lanes;
+                } else {
+                    stack[depth] = Entry {
+                        node: far,
+                        lanes: far_lanes,
+                        t_near: select(z, t_near, t_near.max(lo)),
+                        t_far,
+                    };
+                    depth += 1;
+                    node = near;
+                    lanes = near_lanes;
+                    t_far = select(z, t_far, t_far.min(hi));
+                }
+                continue;
+            }
+            let [first, count] = self.leaves[n.leaf_index() as usize];
+            let prims = &self.prim_indices[first as usize..(first + count) as usize];
+            if ANY_HIT {
+                let mut live = lanes;
+                for &p in prims {
+                    let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
+                    occluded |= hits.mask;
+                    live &= !hits.mask;
+                    if none(live) {
+                        break;
+                    }
+                }
+                if none(active & !occluded) {
+                    return occluded;
+                }
+            } else {
+                let mut limit = next_up(best.t).min(rays.t_max);
+                for &p in prims {
+                    let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
+                    if any(best.merge(&hits, p)) {
+                        limit = next_up(best.t).min(rays.t_max);
+                    }
+                }
+            }
+            loop {
+                if depth == 0 {
+                    return occluded;
+                }
+                depth -= 1;
+                let e = stack[depth];
+                lanes = if ANY_HIT {
+                    e.lanes & !occluded
+                } else {
+                    e.lanes & !e.t_near.simd_gt(best.t)
+                };
+                if any(lanes) {
+                    (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
+                    break;
+                }
+            }
+        }
+    }
+}
