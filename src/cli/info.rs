@@ -2,21 +2,19 @@
 //! prints its statistics: shape, SAH cost, memory, build time; with `--primary`, also
 //! the scalar primary-ray rate of the scene's camera on one thread.
 //!
-//! For an OBJ file the camera comes from a `cameras.toml` beside the file's folder
-//! (the layout of ../shared/scenes) when it lists the file, else a view of the bounds.
+//! SCENE is read as `raypack bench` reads it (a TOML scene, an OBJ mesh, or a name from
+//! ../shared/scenes/cameras.toml), and the primary rays are RAYS.md's standard set.
 
-use super::BadInput;
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
-use raypack::scene::{Camera, Geometry};
-use std::path::{Path, PathBuf};
+use raypack::rayset::{scenes, standard};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// An OBJ mesh or a TOML scene file.
-    pub scene: PathBuf,
+    /// A TOML scene, an OBJ mesh, or a scene name from ../shared/scenes/cameras.toml.
+    pub scene: String,
     /// Build threads (0: all cores). With 1 the build is serial.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -38,7 +36,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (geometry, camera) = load(&args.scene)?;
+    let scene = scenes::load(&args.scene)?;
+    let geometry = &scene.geometry;
     let threads = if args.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
@@ -59,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut tree = None;
     for _ in 0..args.repeat.max(1) {
         let start = Instant::now();
-        tree = Some(pool.install(|| KdTree::build_with(&geometry, &params)));
+        tree = Some(pool.install(|| KdTree::build_with(geometry, &params)));
         seconds.push(start.elapsed().as_secs_f64());
     }
     let tree = tree.expect("at least one build");
@@ -67,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let s = tree.stats(&params);
     let tris = geometry.triangles.len();
     let per_tri = |bytes: usize| bytes as f64 / tris.max(1) as f64;
-    println!("scene            {}", args.scene.display());
+    println!("scene            {}", args.scene);
     println!(
         "primitives       {} triangles, {} spheres, {} boxes, {} planes",
         tris,
@@ -115,11 +114,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if args.primary {
-        let (w, h) = (1024, 768);
-        let frame = camera.frame(w, h);
-        let rays: Vec<_> = (0..w * h)
-            .map(|i| frame.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5))
-            .collect();
+        let (w, h) = (standard::WIDTH, standard::HEIGHT);
+        let rays = standard::primary(&scene.view, w, h)?.rays;
         let mut best = f64::INFINITY;
         let mut checksum = 0u64;
         let mut hits = 0;
@@ -145,67 +141,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// The geometry and camera of `path`.
-fn load(path: &Path) -> anyhow::Result<(Geometry, Camera)> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    if !ext.eq_ignore_ascii_case("obj") {
-        return Err(BadInput(format!(
-            "{}: expected an .obj mesh (TOML scenes are not supported by `info` yet)",
-            path.display()
-        ))
-        .into());
-    }
-    let mesh = raypack::scene::obj::load(path)?;
-    let geometry = Geometry {
-        vertices: mesh.positions,
-        triangles: mesh.triangles,
-        ..Geometry::default()
-    };
-    let camera = listed_camera(path).unwrap_or_else(|| overview_camera(&geometry));
-    Ok((geometry, camera))
-}
-
-/// The camera of `obj` in a `cameras.toml` one folder up (../shared/scenes's layout).
-fn listed_camera(obj: &Path) -> Option<Camera> {
-    let dir = obj.parent()?.parent()?;
-    let text = std::fs::read_to_string(dir.join("cameras.toml")).ok()?;
-    let table: toml::Table = text.parse().ok()?;
-    let same = |p: &Path| {
-        p.canonicalize()
-            .ok()
-            .is_some_and(|a| obj.canonicalize().ok() == Some(a))
-    };
-    table
-        .values()
-        .filter_map(|v| v.as_table())
-        .find_map(|entry| {
-            if !same(&dir.join(entry.get("obj")?.as_str()?)) {
-                return None;
-            }
-            let vec3 = |key: &str| -> Option<glam::Vec3> {
-                let a = entry.get(key)?.as_array()?;
-                let f = |i: usize| a.get(i)?.as_float().map(|x| x as f32);
-                Some(glam::Vec3::new(f(0)?, f(1)?, f(2)?))
-            };
-            Some(Camera {
-                eye: vec3("eye")?,
-                target: vec3("target")?,
-                up: vec3("up")?,
-                vfov_deg: entry.get("vfov_deg")?.as_float()? as f32,
-            })
-        })
-}
-
-/// A three-quarter view of the whole scene.
-fn overview_camera(g: &Geometry) -> Camera {
-    let b = g.bounds();
-    let centre = (b.min + b.max) * 0.5;
-    Camera {
-        eye: centre + glam::Vec3::new(0.6, 0.5, -1.0) * b.diagonal(),
-        target: centre,
-        up: glam::Vec3::Y,
-        vfov_deg: 45.0,
-    }
 }
