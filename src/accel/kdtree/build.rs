@@ -268,7 +268,7 @@ impl KdTree {
             max_depth_limit: max_depth,
         };
         KdTree {
-            nodes: out.nodes,
+            nodes: out.nodes.into(),
             leaves: out.leaves,
             prim_indices: out.prim_indices,
             prims,
