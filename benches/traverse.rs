@@ -64,20 +64,7 @@ fn traverse(c: &mut Criterion) {
     let primary_rays: Vec<Ray> = quads.iter().flatten().copied().collect();
     let primary_packets: Vec<RayPacket> = quads.iter().map(|q| RayPacket::from_rays(q)).collect();
     let shadow_rays: Vec<Ray> = shadows.iter().flatten().flatten().copied().collect();
-    let shadow_packets: Vec<RayPacket> = shadows
-        .iter()
-        .map(|s| {
-            let mut p = RayPacket::from_rays(
-                &s.map(|r| r.unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0))),
-            );
-            let live = s
-                .iter()
-                .enumerate()
-                .fold(0, |m, (i, r)| m | ((r.is_some() as u32) << i));
-            p.active = raypack::simd::mask_from_bits(live);
-            p
-        })
-        .collect();
+    let shadow_packets: Vec<RayPacket> = shadows.iter().map(RayPacket::from_lanes).collect();
 
     let mut group = c.benchmark_group("traverse/scalar");
     group.sample_size(10);
