@@ -10,7 +10,7 @@ use std::path::PathBuf;
 /// A scene file (TOML) that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{}: cannot read scene file: {source}", path.display())]
+    #[error("{}: cannot read scene file", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
@@ -71,7 +71,7 @@ fn suggestion_text(s: &Option<String>) -> String {
 /// A Wavefront OBJ mesh or its MTL material library that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ObjError {
-    #[error("{}: cannot read mesh: {source}", path.display())]
+    #[error("{}: cannot read mesh", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
@@ -91,7 +91,7 @@ pub enum ObjError {
         element: &'static str,
     },
     #[error(
-        "{}:{line}: {element}: index {index} is out of range ({count} {what} defined before this line)",
+        "{}:{line}: {element}: index {index} is out of range ({count} {what} available)",
         path.display()
     )]
     IndexOutOfRange {
@@ -117,7 +117,7 @@ pub enum ObjError {
         what: &'static str,
         max: u64,
     },
-    #[error("{}:{line}: mtllib: cannot read material library {}: {source}", path.display(), mtl.display())]
+    #[error("{}:{line}: mtllib: cannot read material library {}", path.display(), mtl.display())]
     MissingMtl {
         path: PathBuf,
         line: usize,
@@ -141,7 +141,7 @@ pub enum ObjError {
     #[error("{}: readers disagree: {message}", path.display())]
     Inconsistent { path: PathBuf, message: String },
     /// `tobj` refused a file that raypack's own line check accepted.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: cannot parse mesh", path.display())]
     Parse {
         path: PathBuf,
         source: tobj::LoadError,
@@ -151,12 +151,12 @@ pub enum ObjError {
 /// An image texture that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum TextureError {
-    #[error("{}: cannot read texture: {source}", path.display())]
+    #[error("{}: cannot read texture", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{}: cannot decode texture: {source}", path.display())]
+    #[error("{}: cannot decode texture", path.display())]
     Decode {
         path: PathBuf,
         source: image::ImageError,

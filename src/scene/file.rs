@@ -1018,3 +1018,99 @@ impl Builder {
         Ok(self.scene)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::PrimRef;
+    use crate::scene::obj::tests::folder;
+
+    const CAMERA: &str = "[camera]\neye = [0, 0, -5]\ntarget = [0, 0, 0]\n";
+
+    #[test]
+    fn ids_run_meshes_spheres_boxes_planes_with_their_materials() {
+        let text = format!(
+            "{CAMERA}
+[materials.red]
+color = [1, 0, 0]
+[[planes]]
+normal = [0, 2, 0]
+point = [0, -1, 0]
+[[spheres]]
+center = [0, 0, 0]
+radius = 1
+material = \"red\"
+[[boxes]]
+min = [0, 0, 0]
+max = [1, 1, 1]
+[[meshes]]
+file = \"quad.obj\"
+scale = [2, 1, 1]
+translate = [0, 0, 3]
+"
+        );
+        let obj =
+            "mtllib q.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nusemtl blue\nf 1 3 4\n";
+        let mtl = "newmtl blue\nKd 0 0 1\n";
+        let dir = folder(
+            "ids",
+            &[("s.toml", &text), ("quad.obj", obj), ("q.mtl", mtl)],
+        );
+        let s = load(&dir.join("s.toml")).unwrap();
+        let g = &s.geometry;
+        assert_eq!(g.prim_count(), 5);
+        assert_eq!(g.prim_ref(0), PrimRef::Triangle(0));
+        assert_eq!(g.prim_ref(2), PrimRef::Sphere(0));
+        assert_eq!(g.prim_ref(3), PrimRef::Box(0));
+        assert_eq!(g.prim_ref(4), PrimRef::Plane(0));
+        assert_eq!(g.planes[0].normal, Vec3::Y);
+        assert_eq!(g.planes[0].offset, -1.0);
+        assert_eq!(g.triangle(0)[1], Vec3::new(2.0, 0.0, 3.0));
+        assert_eq!(s.material(2).color, Vec3::X);
+        assert_eq!(
+            s.material(1).color,
+            Vec3::Z,
+            "MTL material of the second triangle"
+        );
+        let default = Material::default();
+        for p in [0, 3, 4] {
+            assert_eq!(s.material(p), &default, "prim {p}");
+        }
+        assert_eq!(s.normals.len(), g.vertices.len());
+    }
+
+    #[test]
+    fn area_light_from_center_and_size_is_a_horizontal_rectangle() {
+        let text = format!(
+            "{CAMERA}[[spheres]]\ncenter = [0, 0, 0]\nradius = 1\n\
+             [[lights]]\nkind = \"area\"\ncenter = [1, 5, 2]\nsize = [2, 4]\nsamples = 9\n"
+        );
+        let s = parse(Path::new("mem.toml"), &text).unwrap();
+        assert_eq!(
+            s.lights[0],
+            Light::Area {
+                corner: Vec3::new(0.0, 5.0, 0.0),
+                edge_u: Vec3::new(2.0, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 0.0, 4.0),
+                color: Vec3::ONE,
+                samples: 9,
+            }
+        );
+    }
+
+    #[test]
+    fn defaults_fill_what_the_file_leaves_out() {
+        let text = format!("{CAMERA}[[spheres]]\ncenter = [0, 0, 0]\nradius = 1\n");
+        let s = parse(Path::new("mem.toml"), &text).unwrap();
+        assert_eq!(s.settings, RenderSettings::default());
+        assert_eq!(s.camera.up, Vec3::Y);
+        assert_eq!(s.camera.vfov_deg, 60.0);
+        assert_eq!(s.materials, vec![Material::default()]);
+    }
+
+    #[test]
+    fn lines_are_counted_from_one() {
+        let doc = Doc::new(Path::new("x"), "a\nbb\n\nc");
+        assert_eq!([0, 1, 2, 4, 5, 6].map(|o| doc.line(o)), [1, 1, 2, 2, 3, 4]);
+    }
+}

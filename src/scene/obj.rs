@@ -806,12 +806,12 @@ fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Writes `files` (name, contents) into a fresh folder and returns its path.
-    fn folder(test: &str, files: &[(&str, &str)]) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("raypack-obj-{}-{test}", std::process::id()));
+    pub(crate) fn folder(test: &str, files: &[(&str, &str)]) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("raypack-scene-{}-{test}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         for (name, text) in files {

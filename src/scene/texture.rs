@@ -234,3 +234,75 @@ fn value_noise(seed: u32, period: u32, u: f32, v: f32) -> f32 {
     let bottom = hash01(seed, i, j1) * (1.0 - sx) + hash01(seed, i1, j1) * sx;
     top * (1.0 - sy) + bottom * sy
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn png_is_decoded_to_linear_with_the_top_row_at_v_1() {
+        let path = std::env::temp_dir().join(format!("raypack-tex-{}.png", std::process::id()));
+        // Top pixel white, bottom pixel sRGB 128.
+        let img = image::RgbImage::from_raw(1, 2, vec![255, 255, 255, 128, 128, 128]).unwrap();
+        img.save(&path).unwrap();
+        let t = load(&path).unwrap();
+        assert_eq!((t.width, t.height), (1, 2));
+        let grey = srgb_to_linear(128.0 / 255.0);
+        assert!((grey - 0.21586).abs() < 1e-4, "{grey}");
+        assert_eq!(t.texels[0], Vec3::splat(grey));
+        assert_eq!(t.texels[1], Vec3::ONE);
+    }
+
+    #[test]
+    fn srgb_curve_is_continuous_and_fixes_the_ends() {
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        let below = srgb_to_linear(0.04045);
+        let above = srgb_to_linear(0.040451);
+        assert!((above - below).abs() < 1e-5);
+    }
+
+    #[test]
+    fn checker_alternates_squares() {
+        let (a, b) = (Vec3::ONE, Vec3::ZERO);
+        let t = Procedural::Checker { squares: 4, a, b }.generate(8, 8);
+        assert_eq!(t.texels[0], a);
+        assert_eq!(t.texels[1], a);
+        assert_eq!(t.texels[2], b);
+        assert_eq!(t.texels[2 * 8], b);
+        assert_eq!(t.texels[2 * 8 + 2], a);
+    }
+
+    #[test]
+    fn generated_textures_are_deterministic_and_bounded() {
+        let kinds = [
+            Procedural::Bricks {
+                rows: 8,
+                columns: 4,
+                mortar: 0.1,
+                brick: Vec3::new(0.6, 0.2, 0.1),
+                mortar_color: Vec3::splat(0.7),
+                seed: 5,
+            },
+            Procedural::Marble {
+                scale: 4,
+                turbulence: 3.0,
+                a: Vec3::splat(0.9),
+                b: Vec3::splat(0.2),
+                seed: 9,
+            },
+        ];
+        for k in &kinds {
+            let t = k.generate(64, 32);
+            assert_eq!(t, k.generate(64, 32));
+            assert_eq!(t.texels.len(), 64 * 32);
+            assert!(
+                t.texels
+                    .iter()
+                    .all(|c| c.is_finite() && c.min_element() >= 0.0)
+            );
+            let first = t.texels[0];
+            assert!(t.texels.iter().any(|&c| c != first), "{k:?} is flat");
+        }
+    }
+}
