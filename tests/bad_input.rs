@@ -735,3 +735,38 @@ fn mutated_obj_files_never_panic() {
     }
     assert!(ok > 0 && rejected > 0, "ok {ok}, rejected {rejected}");
 }
+
+/// The CLI turns every kind of bad input into exit code 2 and one message naming the
+/// file, line and key.
+#[test]
+fn cli_exits_2_naming_the_place() {
+    let out_png = std::env::temp_dir().join(format!("raypack-bad-{}.png", std::process::id()));
+    for (rel, want) in [
+        (
+            "scene/negative_radius.toml",
+            "negative_radius.toml:7: spheres[0].radius",
+        ),
+        ("scene/bad_mesh.toml", "zero_index.obj:4: f: index 0"),
+        (
+            "scene/corrupt_image.toml",
+            "corrupt.png: cannot decode texture",
+        ),
+        (
+            "scene/no_such_scene.toml",
+            "no_such_scene.toml: cannot read scene file",
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_raypack"))
+            .arg("render")
+            .arg(data(rel))
+            .arg("-o")
+            .arg(&out_png)
+            .output()
+            .expect("raypack runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{rel}: {stderr}");
+        assert!(stderr.contains(want), "{rel}: `{stderr}` lacks `{want}`");
+        assert!(!stderr.contains("panicked"), "{rel}: {stderr}");
+        assert!(!out_png.exists(), "{rel}: an image was written");
+    }
+}

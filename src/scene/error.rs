@@ -15,8 +15,9 @@ pub enum SceneError {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// TOML syntax errors and type mismatches, as reported by the TOML parser.
-    #[error("{}:{line}: {message}", path.display())]
+    /// TOML syntax errors, as reported by the TOML parser (`line` 0 when it gives no
+    /// position).
+    #[error("{}{}: {message}", path.display(), line_text(*line))]
     Syntax {
         path: PathBuf,
         line: usize,
@@ -59,6 +60,14 @@ pub enum SceneError {
         key: String,
         source: Box<TextureError>,
     },
+}
+
+fn line_text(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
 }
 
 fn suggestion_text(s: &Option<String>) -> String {

@@ -59,7 +59,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let doc = Doc::new(path, text);
     let root = DeTable::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
-        line: doc.line(e.span().map_or(0, |s| s.start)),
+        line: e.span().map_or(0, |s| doc.line(s.start)),
         message: e.message().trim().to_string(),
     })?;
     let root = Section {
