@@ -280,6 +280,42 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
         assert!(lo > 0.0 && lo <= med && med <= hi, "{r}");
     }
     assert_eq!(rows[0]["rays"], 32 * 32);
+
+    // --rays DIR traces ray files instead: the same rays give the same checksum.
+    let primary = dir.join("primary.rays");
+    ok(&raypack(&[
+        "rays",
+        "spd:balls:2",
+        "--out",
+        s(&primary),
+        "--width",
+        "32",
+        "--height",
+        "32",
+    ]));
+    let json2 = dir.join("files.json");
+    ok(&raypack(&[
+        "bench",
+        "spd:balls:2",
+        "--rays",
+        s(&dir),
+        "--sets",
+        "primary",
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+        "--json",
+        s(&json2),
+    ]));
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json2).unwrap()).unwrap();
+    assert_eq!(w["results"][0]["checksum"], rows[0]["checksum"]);
+    assert_eq!(
+        w["results"].as_array().unwrap().len(),
+        2,
+        "scalar and packet"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -66,6 +66,10 @@ pub struct Args {
     /// Image height of the primary set (a multiple of 16).
     #[arg(long, default_value_t = standard::HEIGHT)]
     pub height: u32,
+    /// Trace DIR/<set>.rays (e.g. the Embree harness's `gen` output) instead of the sets
+    /// raypack makes, so two tracers are timed on the same rays.
+    #[arg(long, value_name = "DIR")]
+    pub rays: Option<PathBuf>,
     /// Also write the results as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -103,6 +107,8 @@ pub struct Report {
     pub height: u32,
     pub light: [f64; 3],
     pub light_source: String,
+    /// 1-minute load average before and after the timed passes.
+    pub load_average: [f64; 2],
     pub results: Vec<Row>,
 }
 
@@ -140,6 +146,15 @@ pub fn machine() -> Machine {
         simd.join("+")
     };
     Machine { cpu, cores, simd }
+}
+
+/// The 1-minute load average (runnable processes), or NaN where the system does not
+/// say; a figure above the thread count means other processes shared the cores.
+pub fn load_average() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
+        .unwrap_or(f64::NAN)
 }
 
 /// A rayon pool of `threads` threads, thread `i` pinned to core `i % cores`.
@@ -214,7 +229,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let scene = load_scene(&args.scene)?;
-    let (accel, build_seconds, sets) = prepare(&scene, args.width, args.height)?;
+    let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height)?;
+    if let Some(dir) = &args.rays {
+        for name in &args.sets {
+            let set = rayset::read_rays(&dir.join(format!("{name}.rays")))?;
+            match name.as_str() {
+                "primary" => sets.primary = set,
+                "shadow" => sets.shadow = set,
+                _ => sets.diffuse = set,
+            }
+        }
+        println!("ray sets read from {}", dir.display());
+    }
     println!(
         "raypack bench {}: {} triangles, {} spheres; {} built in {:.3} s",
         args.scene,
@@ -230,8 +256,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "sets: primary {} rays ({}x{}), shadow {}, diffuse {}; light [{:.6}, {:.6}, {:.6}] ({}), offset {:.6}",
         sets.primary.len(),
-        args.width,
-        args.height,
+        sets.primary.width,
+        sets.primary.height,
         sets.shadow.len(),
         sets.diffuse.len(),
         sets.light.x,
@@ -251,6 +277,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut rows = Vec::new();
     let mut disagreements = Vec::new();
+    let load_before = load_average();
     for name in &args.sets {
         let (set, query) = match name.as_str() {
             "primary" => (&sets.primary, Query::Closest),
@@ -295,6 +322,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
+    let load_after = load_average();
+    println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
     if let Some(path) = &args.json {
         let report = Report {
             machine,
@@ -304,10 +333,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             spheres: scene.geometry.spheres.len(),
             primitives: scene.geometry.prim_count(),
             build_seconds,
-            width: args.width,
-            height: args.height,
+            width: sets.primary.width,
+            height: sets.primary.height,
             light: sets.light.to_array(),
             light_source: sets.light_source.describe().to_string(),
+            load_average: [load_before, load_after],
             results: rows,
         };
         let mut text = serde_json::to_string_pretty(&report)?;
