@@ -770,3 +770,11 @@ fn cli_exits_2_naming_the_place() {
         assert!(!out_png.exists(), "{rel}: an image was written");
     }
 }
+
+scene_case!(
+    texture_budget,
+    "too_many_texels.toml",
+    SceneError::Invalid { .. },
+    25,
+    ["textures.t4", "texels in all"]
+);

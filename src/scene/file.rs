@@ -34,6 +34,8 @@ pub const MAX_SAMPLES: u32 = 4096;
 pub const MAX_ANTIALIAS_N: u32 = 16;
 /// Largest side of a generated texture.
 pub const MAX_PROCEDURAL_SIDE: u32 = 4096;
+/// Texels of all `[textures]` of a scene together (768 MiB of linear RGB).
+pub const MAX_TEXELS: u64 = 1 << 26;
 
 /// Reads and checks the scene file at `path`.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -387,6 +389,7 @@ impl<'a> Doc<'a> {
             ..Default::default()
         };
         let mut names = Names::default();
+        let mut texel_count = 0u64;
         if let Some(t) = self.table(root, "textures")? {
             for (name, v) in t.table.iter() {
                 let name: &str = name.get_ref().as_ref();
@@ -394,7 +397,8 @@ impl<'a> Doc<'a> {
                 names
                     .textures
                     .insert(name.to_string(), scene.textures.len() as u32);
-                scene.textures.push(self.texture(&section)?);
+                let texture = self.texture(&section, &mut texel_count)?;
+                scene.textures.push(texture);
             }
         }
         if let Some(t) = self.table(root, "materials")? {
@@ -603,7 +607,21 @@ impl<'a> Doc<'a> {
         })
     }
 
-    fn texture(&self, t: &Section) -> Result<Texture, SceneError> {
+    /// Texture `t`; `texel_count` sums the texels of the scene's textures so far, and
+    /// is checked against [`MAX_TEXELS`] before a texture is generated.
+    fn texture(&self, t: &Section, texel_count: &mut u64) -> Result<Texture, SceneError> {
+        let mut budget = |texels: u64| {
+            *texel_count += texels;
+            if *texel_count > MAX_TEXELS {
+                Err(self.invalid(
+                    &t.span,
+                    t.name.clone(),
+                    format!("the scene's textures exceed {MAX_TEXELS} texels in all"),
+                ))
+            } else {
+                Ok(())
+            }
+        };
         let kind_v = self.required(t, "kind")?;
         let kind = self.string(kind_v, &t.key("kind"))?;
         const SIZE: [&str; 3] = ["kind", "width", "height"];
@@ -647,6 +665,7 @@ impl<'a> Doc<'a> {
         }
         let width = self.u32_in(t, "width", 256, 1, MAX_PROCEDURAL_SIDE)?;
         let height = self.u32_in(t, "height", 256, 1, MAX_PROCEDURAL_SIDE)?;
+        budget(width as u64 * height as u64)?;
         let seed = self.u32_in(t, "seed", 0, 0, u32::MAX)?;
         let p = match kind {
             "checker" => Procedural::Checker {

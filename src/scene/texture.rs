@@ -254,6 +254,35 @@ mod tests {
     }
 
     #[test]
+    fn tga_and_jpeg_load_and_the_format_comes_from_the_bytes() {
+        let dir = std::env::temp_dir();
+        let img = image::RgbImage::from_fn(8, 4, |x, _| image::Rgb([x as u8 * 30, 200, 0]));
+        let id = std::process::id();
+        let tga = dir.join(format!("raypack-tex-{id}.tga"));
+        img.save(&tga).unwrap();
+        let t = load(&tga).unwrap();
+        assert_eq!((t.width, t.height), (8, 4));
+        assert_eq!(
+            t.texels[3],
+            Vec3::new(
+                srgb_to_linear(90.0 / 255.0),
+                srgb_to_linear(200.0 / 255.0),
+                0.0
+            )
+        );
+        let jpg = dir.join(format!("raypack-tex-{id}.jpg"));
+        img.save(&jpg).unwrap();
+        let j = load(&jpg).unwrap();
+        assert_eq!((j.width, j.height), (8, 4));
+        assert!((j.texels[0].y - srgb_to_linear(200.0 / 255.0)).abs() < 0.05);
+        // PNG bytes under a .jpg name still decode as PNG.
+        let misnamed = dir.join(format!("raypack-tex-{id}-png.jpg"));
+        img.save_with_format(&misnamed, image::ImageFormat::Png)
+            .unwrap();
+        assert_eq!(load(&misnamed).unwrap(), load(&tga).unwrap());
+    }
+
+    #[test]
     fn srgb_curve_is_continuous_and_fixes_the_ends() {
         assert_eq!(srgb_to_linear(0.0), 0.0);
         assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
