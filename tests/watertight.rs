@@ -17,18 +17,24 @@ fn closed_meshes_leak_no_ray() {
     let mut report = Vec::new();
     let mut failures = Vec::new();
     for (m, mesh) in closed_meshes().iter().enumerate() {
+        let start = std::time::Instant::now();
         let tree = KdTree::build(&mesh.geometry);
+        println!("{}: tree built in {:?}", mesh.name, start.elapsed());
         let sets = [
             ("random", interior_rays(mesh, RANDOM_RAYS, 100 + m as u64)),
             ("aimed", aimed_rays(mesh, AIMED_RAYS, 200 + m as u64)),
         ];
         for (set, rays) in &sets {
-            for (path, leaks) in [
-                ("scalar", leaks_scalar(&tree, rays)),
-                ("packet", leaks_packet(&tree, rays)),
-            ] {
+            for path in ["scalar", "packet"] {
+                let start = std::time::Instant::now();
+                let leaks = if path == "scalar" {
+                    leaks_scalar(&tree, rays)
+                } else {
+                    leaks_packet(&tree, rays)
+                };
+                let elapsed = start.elapsed();
                 let line = format!(
-                    "{:<12} {:>7} tris  {set:<6} {path:<6} {:>4} leaks / {} rays",
+                    "{:<12} {:>7} tris  {set:<6} {path:<6} {:>4} leaks / {} rays ({elapsed:.2?})",
                     mesh.name,
                     mesh.geometry.triangles.len(),
                     leaks.len(),
