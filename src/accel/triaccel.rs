@@ -31,7 +31,9 @@
 //! corners and a per-lane permutation of axes in the packet test, about three times the
 //! arithmetic.
 //!
-//! So the test is a hybrid. The fast TriAccel answer stands when the smallest of `u`,
+//! So the test is a hybrid. A lane whose `t` lies outside `(t_min, t_max)` by more than
+//! it can differ from the exact rule's `t` ([`T_SLACK`]) leaves at once, as in Wald's
+//! test. Otherwise the fast TriAccel answer stands when the smallest of `u`,
 //! `v`, `w = 1 - u - v` is farther from zero than the bound above (with `c1 = 128`,
 //! `c2 = 64`: four times the first-order constants of TriAccel's own rounding plus the
 //! exact rule's). Then the exact rule of [`crate::accel::watertight`] gives the same
@@ -63,6 +65,11 @@ pub const C1: f32 = 128.0;
 
 /// Weight of the constant term in the edge bound.
 pub const C2: f32 = 64.0;
+
+/// `|t - t_exact| <= T_SLACK * reach / |denom|` with `reach = mag + |o| + |t| |d|`: the
+/// first-order bound on how far TriAccel's `t` lies from the exact rule's (`28 eps`),
+/// times four. Lanes farther than this outside `(t_min, t_max)` leave at once.
+pub const T_SLACK: f32 = 1.0 / (1u32 << 17) as f32;
 
 /// `if a < b { a } else { b }`: the order of [`crate::simd::min_lt`].
 #[inline]
@@ -244,15 +251,21 @@ impl TriAccel {
         let denom = d[k] + self.n_u * d[ku] + self.n_v * d[kv];
         let numer = self.n_d - o[k] - self.n_u * o[ku] - self.n_v * o[kv];
         let t = numer / denom;
+        let ad = denom.abs();
+        let o_max = max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs());
+        let d_max = max_gt(max_gt(d.x.abs(), d.y.abs()), d.z.abs());
+        let reach = self.mag + o_max + t.abs() * d_max;
+        // Early out, written so that NaN fails: `t` is outside the ray's range by more
+        // than it can differ from the exact rule's `t` (`T_SLACK * reach / |denom|`).
+        let slack = reach * T_SLACK;
+        if !((t - t_max) * ad < slack && (ray.t_min - t) * ad < slack) {
+            return None;
+        }
         let hu = o[ku] + t * d[ku];
         let hv = o[kv] + t * d[kv];
         let u = hu * self.b_nu + hv * self.b_nv + self.b_d;
         let v = hu * self.c_nu + hv * self.c_nv + self.c_d;
         let w = 1.0 - u - v;
-        let ad = denom.abs();
-        let o_max = max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs());
-        let d_max = max_gt(max_gt(d.x.abs(), d.y.abs()), d.z.abs());
-        let reach = self.mag + o_max + t.abs() * d_max;
         let bound = self.err * reach * (C1 * d_max + C2 * ad);
         let edge = min_lt(min_lt(u, v), w) * ad;
         // Written so that NaN (denominator 0) fails. The `t` range is checked on the

@@ -11,8 +11,8 @@
 //! values (NaN included) reach no other lane because every operation is lane-wise.
 
 use super::packet::{LaneHits, RayPacket};
-use super::triaccel::{C1, C2, MOD3, TriAccel, exact_rule};
-use crate::simd::{LANES, Mask, Vf, bits, mask_from_bits, max_gt, min_lt, splat};
+use super::triaccel::{C1, C2, MOD3, T_SLACK, TriAccel, exact_rule};
+use crate::simd::{LANES, Mask, Vf, bits, mask_from_bits, max_gt, min_lt, none, splat};
 use glam::Vec3;
 
 impl TriAccel {
@@ -33,20 +33,26 @@ impl TriAccel {
         let denom = d[k] + n_u * d[ku] + n_v * d[kv];
         let numer = splat(self.n_d) - o[k] - n_u * o[ku] - n_v * o[kv];
         let t = numer / denom;
+        let ad = denom.abs();
+        let o_max = max_gt(max_gt(o[0].abs(), o[1].abs()), o[2].abs());
+        let d_max = max_gt(max_gt(d[0].abs(), d[1].abs()), d[2].abs());
+        let reach = splat(self.mag) + o_max + t.abs() * d_max;
+        let slack = reach * splat(T_SLACK);
+        let mask =
+            active & ((t - t_max) * ad).simd_lt(slack) & ((rays.t_min - t) * ad).simd_lt(slack);
+        if none(mask) {
+            return LaneHits::none();
+        }
         let hu = o[ku] + t * d[ku];
         let hv = o[kv] + t * d[kv];
         let u = hu * splat(self.b_nu) + hv * splat(self.b_nv) + splat(self.b_d);
         let v = hu * splat(self.c_nu) + hv * splat(self.c_nv) + splat(self.c_d);
         let w = Vf::ONE - u - v;
-        let ad = denom.abs();
-        let o_max = max_gt(max_gt(o[0].abs(), o[1].abs()), o[2].abs());
-        let d_max = max_gt(max_gt(d[0].abs(), d[1].abs()), d[2].abs());
-        let reach = splat(self.mag) + o_max + t.abs() * d_max;
         let bound = splat(self.err) * reach * (splat(C1) * d_max + splat(C2) * ad);
         let edge = min_lt(min_lt(u, v), w) * ad;
         let inside = edge.simd_ge(bound);
-        let sure = active & inside & t.simd_gt(rays.t_min) & t.simd_lt(t_max);
-        let unsure = bits(active & !inside & edge.simd_ge(-bound));
+        let sure = mask & inside & t.simd_gt(rays.t_min) & t.simd_lt(t_max);
+        let unsure = bits(mask & !inside & edge.simd_ge(-bound));
         if unsure == 0 {
             return LaneHits {
                 mask: sure,
