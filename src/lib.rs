@@ -17,6 +17,7 @@
 
 pub mod accel;
 pub mod ray;
+pub mod rayset;
 pub mod render;
 pub mod scene;
 pub mod simd;
@@ -24,5 +25,9 @@ pub mod simd;
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
 /// textures, ray files), which the CLI reports with exit code 2.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
-    e.is::<scene::SceneError>() || e.is::<scene::ObjError>() || e.is::<scene::TextureError>()
+    e.is::<scene::SceneError>()
+        || e.is::<scene::ObjError>()
+        || e.is::<scene::TextureError>()
+        || e.is::<rayset::RaySetError>()
+        || e.is::<rayset::scenes::BenchSceneError>()
 }

@@ -28,14 +28,26 @@ pub fn intersect_sphere_packet(s: &Sphere, rays: &RayPacket, active: Mask, t_max
     let oc = [0, 1, 2].map(|a| rays.org[a] - splat(s.center[a]));
     let a = dot(rays.dir, rays.dir);
     let b = dot(oc, rays.dir);
-    let c = dot(oc, oc) - splat(s.radius * s.radius);
-    let disc = b * b - a * c;
+    let r2 = splat(s.radius * s.radius);
+    let c = dot(oc, oc) - r2;
+    let s_line = b / a;
+    let l = [0, 1, 2].map(|k| oc[k] - rays.dir[k] * s_line);
+    let disc = a * (r2 - dot(l, l));
     let mask = active & disc.simd_ge(Vf::ZERO);
     if none(mask) {
         return LaneHits::none();
     }
     let root = disc.sqrt();
-    nearer_in_range(mask, (-b - root) / a, (-b + root) / a, rays, t_max)
+    let q = -(b + select(b.simd_lt(Vf::ZERO), -root, root));
+    let (t0, t1) = (c / q, q / a);
+    let order = t0.simd_lt(t1);
+    nearer_in_range(
+        mask,
+        select(order, t0, t1),
+        select(order, t1, t0),
+        rays,
+        t_max,
+    )
 }
 
 /// In the lanes of `mask`, `t0` if it lies in `(t_min, t_max)`, else `t1` if it does:

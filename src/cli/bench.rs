@@ -1,8 +1,355 @@
-//! `raypack bench`.
+//! `raypack bench`: rays per second on the standard ray sets of a scene (RAYS.md).
+//!
+//! The sets are made once, before any timing; the build is timed on its own. Every
+//! (set, threads, mode) is traced once to warm up and then `--repeat` times; a pass is
+//! the wall time of tracing the whole set on a rayon pool of that many threads, each
+//! pinned to a core, taking chunks of 4096 rays (the peers' protocol in ANCHORS.md).
+//! Every pass folds its answers into a checksum, printed beside the rates; closest-hit
+//! sets must give the same checksum in every mode and thread count.
+
+use super::{BadInput, load_scene};
+use anyhow::Context;
+use raypack::accel::Accel;
+use raypack::accel::kdtree::KdTree;
+use raypack::rayset::scenes::BenchScene;
+use raypack::rayset::trace::{Query, checksum_set};
+use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
+use raypack::scene::Geometry;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The accelerator `bench`, `trace` and `rays` trace through.
+pub type BenchAccel = KdTree;
+
+/// Builds the accelerator of `geometry` (on the global rayon pool: every core unless
+/// `RAYON_NUM_THREADS` says otherwise); returns it and the build time in seconds.
+pub fn build_accel(geometry: &Geometry) -> (BenchAccel, f64) {
+    let start = Instant::now();
+    let accel = KdTree::build(geometry);
+    (accel, start.elapsed().as_secs_f64())
+}
+
+/// Builds the accelerator of `scene` and makes its standard sets at `width x height`.
+pub fn prepare(
+    scene: &BenchScene,
+    width: u32,
+    height: u32,
+) -> anyhow::Result<(BenchAccel, f64, StandardSets)> {
+    let (accel, build_seconds) = build_accel(&scene.geometry);
+    let sets = standard::standard_sets(&accel, &scene.geometry, &scene.view, width, height, None)?;
+    Ok((accel, build_seconds, sets))
+}
+
+/// Name of the accelerator, for reports.
+pub const ACCEL_NAME: &str = "SAH kd-tree";
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// A TOML scene, an OBJ mesh, a scene name of ../shared/scenes/cameras.toml, or spd:NAME[:SIZE].
+    pub scene: String,
+    /// Ray sets to trace (primary, shadow, diffuse).
+    #[arg(long, value_delimiter = ',', default_value = "primary,shadow,diffuse")]
+    pub sets: Vec<String>,
+    /// Modes: scalar (one ray at a time), packet (4 consecutive rays).
+    #[arg(long, value_delimiter = ',', default_value = "scalar,packet")]
+    pub modes: Vec<Mode>,
+    /// Thread counts (default: 1 and every core).
+    #[arg(long, value_delimiter = ',')]
+    pub threads: Vec<usize>,
+    /// Timed passes per measurement (after one warm-up pass).
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// Image width of the primary set (a multiple of 16).
+    #[arg(long, default_value_t = standard::WIDTH)]
+    pub width: u32,
+    /// Image height of the primary set (a multiple of 16).
+    #[arg(long, default_value_t = standard::HEIGHT)]
+    pub height: u32,
+    /// Trace DIR/<set>.rays (e.g. the Embree harness's `gen` output) instead of the sets
+    /// raypack makes, so two tracers are timed on the same rays.
+    #[arg(long, value_name = "DIR")]
+    pub rays: Option<PathBuf>,
+    /// Also write the results as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`raypack bench` is not available yet")
+#[derive(Serialize, Debug)]
+pub struct Machine {
+    pub cpu: String,
+    pub cores: usize,
+    pub simd: String,
+}
+
+#[derive(Serialize, Debug)]
+pub struct Row {
+    pub set: String,
+    pub mode: String,
+    pub threads: usize,
+    pub rays: usize,
+    pub mrays_median: f64,
+    pub mrays_min: f64,
+    pub mrays_max: f64,
+    pub checksum: String,
+}
+
+#[derive(Serialize, Debug)]
+pub struct Report {
+    pub machine: Machine,
+    pub scene: String,
+    pub accel: String,
+    pub triangles: usize,
+    pub spheres: usize,
+    pub primitives: u32,
+    pub build_seconds: f64,
+    pub width: u32,
+    pub height: u32,
+    pub light: [f64; 3],
+    pub light_source: String,
+    /// 1-minute load average before and after the timed passes.
+    pub load_average: [f64; 2],
+    pub results: Vec<Row>,
+}
+
+/// CPU model, logical cores and the SIMD level this binary was built for.
+pub fn machine() -> Machine {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut simd = Vec::new();
+    if cfg!(target_feature = "avx512f") {
+        simd.push("AVX-512F");
+    }
+    if cfg!(target_feature = "avx2") {
+        simd.push("AVX2");
+    } else if cfg!(target_feature = "sse4.1") {
+        simd.push("SSE4.1");
+    } else if cfg!(target_feature = "sse2") {
+        simd.push("SSE2");
+    } else if cfg!(target_feature = "neon") {
+        simd.push("NEON");
+    }
+    if cfg!(target_feature = "fma") {
+        simd.push("FMA");
+    }
+    let simd = if simd.is_empty() {
+        "scalar".to_string()
+    } else {
+        simd.join("+")
+    };
+    Machine { cpu, cores, simd }
+}
+
+/// The 1-minute load average (runnable processes), or NaN where the system does not
+/// say; a figure above the thread count means other processes shared the cores.
+pub fn load_average() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
+        .unwrap_or(f64::NAN)
+}
+
+/// A rayon pool of `threads` threads, thread `i` pinned to core `i % cores`.
+fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
+    let cores = core_affinity::get_core_ids().unwrap_or_default();
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .start_handler(move |i| {
+            if !cores.is_empty() {
+                core_affinity::set_for_current(cores[i % cores.len()]);
+            }
+        })
+        .build()
+        .context("starting the tracing threads")
+}
+
+/// Median of a non-empty list.
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// One measurement: a warm-up pass, then `repeat` timed passes; rates in Mrays/s.
+pub fn measure<A: Accel>(
+    pool: &rayon::ThreadPool,
+    accel: &A,
+    set: &RaySet,
+    mode: Mode,
+    query: Query,
+    repeat: usize,
+) -> (Vec<f64>, Checksum) {
+    let pass = || pool.install(|| checksum_set(accel, &set.rays, mode, query));
+    let checksum = pass();
+    let rates = (0..repeat)
+        .map(|_| {
+            let start = Instant::now();
+            let c = std::hint::black_box(pass());
+            let seconds = start.elapsed().as_secs_f64();
+            assert_eq!(c, checksum, "a pass gave a different answer");
+            set.len() as f64 / seconds / 1e6
+        })
+        .collect();
+    (rates, checksum)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    for s in &args.sets {
+        if !matches!(s.as_str(), "primary" | "shadow" | "diffuse") {
+            return Err(BadInput(format!(
+                "--sets: unknown set `{s}` (expected primary, shadow, diffuse)"
+            ))
+            .into());
+        }
+    }
+    if args.repeat == 0 {
+        return Err(BadInput("--repeat must be at least 1".into()).into());
+    }
+    let machine = machine();
+    let mut threads = if args.threads.is_empty() {
+        vec![1, machine.cores]
+    } else {
+        args.threads.clone()
+    };
+    threads.dedup();
+    if threads.contains(&0) {
+        return Err(BadInput("--threads: thread counts must be at least 1".into()).into());
+    }
+
+    let scene = load_scene(&args.scene)?;
+    let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height)?;
+    if let Some(dir) = &args.rays {
+        for name in &args.sets {
+            let set = rayset::read_rays(&dir.join(format!("{name}.rays")))?;
+            match name.as_str() {
+                "primary" => sets.primary = set,
+                "shadow" => sets.shadow = set,
+                _ => sets.diffuse = set,
+            }
+        }
+        println!("ray sets read from {}", dir.display());
+    }
+    println!(
+        "raypack bench {}: {} triangles, {} spheres; {} built in {:.3} s",
+        args.scene,
+        scene.geometry.triangles.len(),
+        scene.geometry.spheres.len(),
+        ACCEL_NAME,
+        build_seconds
+    );
+    println!(
+        "machine: {}, {} cores, {}",
+        machine.cpu, machine.cores, machine.simd
+    );
+    println!(
+        "sets: primary {} rays ({}x{}), shadow {}, diffuse {}; light [{:.6}, {:.6}, {:.6}] ({}), offset {:.6}",
+        sets.primary.len(),
+        sets.primary.width,
+        sets.primary.height,
+        sets.shadow.len(),
+        sets.diffuse.len(),
+        sets.light.x,
+        sets.light.y,
+        sets.light.z,
+        sets.light_source.describe(),
+        sets.offset
+    );
+    println!(
+        "{:<8} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
+        "set", "mode", "threads", "rays", "median", "min", "max"
+    );
+
+    let pools = threads
+        .iter()
+        .map(|&t| pinned_pool(t).map(|p| (t, p)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut rows = Vec::new();
+    let mut disagreements = Vec::new();
+    let load_before = load_average();
+    for name in &args.sets {
+        let (set, query) = match name.as_str() {
+            "primary" => (&sets.primary, Query::Closest),
+            "shadow" => (&sets.shadow, Query::Occluded),
+            _ => (&sets.diffuse, Query::Closest),
+        };
+        let mut first: Option<Checksum> = None;
+        for (t, pool) in &pools {
+            for &mode in &args.modes {
+                let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
+                let agrees = *first.get_or_insert(checksum) == checksum;
+                if !agrees {
+                    disagreements.push(format!("{name} {mode} {t} threads"));
+                }
+                let (lo, hi) = (
+                    rates.iter().copied().fold(f64::INFINITY, f64::min),
+                    rates.iter().copied().fold(0.0, f64::max),
+                );
+                let med = median(&mut rates);
+                println!(
+                    "{:<8} {:<7} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
+                    name,
+                    mode,
+                    t,
+                    set.len(),
+                    med,
+                    lo,
+                    hi,
+                    checksum,
+                    if agrees { "" } else { "  (differs)" }
+                );
+                rows.push(Row {
+                    set: name.clone(),
+                    mode: mode.to_string(),
+                    threads: *t,
+                    rays: set.len(),
+                    mrays_median: med,
+                    mrays_min: lo,
+                    mrays_max: hi,
+                    checksum: checksum.to_string(),
+                });
+            }
+        }
+    }
+    let load_after = load_average();
+    println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
+    if let Some(path) = &args.json {
+        let report = Report {
+            machine,
+            scene: args.scene.clone(),
+            accel: ACCEL_NAME.to_string(),
+            triangles: scene.geometry.triangles.len(),
+            spheres: scene.geometry.spheres.len(),
+            primitives: scene.geometry.prim_count(),
+            build_seconds,
+            width: sets.primary.width,
+            height: sets.primary.height,
+            light: sets.light.to_array(),
+            light_source: sets.light_source.describe().to_string(),
+            load_average: [load_before, load_after],
+            results: rows,
+        };
+        let mut text = serde_json::to_string_pretty(&report)?;
+        text.push('\n');
+        rayset::write_atomic(path, text.as_bytes())?;
+        println!("wrote {}", path.display());
+    }
+    if !disagreements.is_empty() {
+        anyhow::bail!(
+            "checksums differ between modes or thread counts: {}",
+            disagreements.join(", ")
+        );
+    }
+    Ok(())
 }

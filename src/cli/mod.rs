@@ -48,6 +48,21 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 #[error("{0}")]
 pub struct BadInput(pub String);
 
+/// Loads a scene argument of `bench`, `trace` or `rays` and says what was loaded.
+pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchScene> {
+    let scene = raypack::rayset::scenes::load(arg)?;
+    eprintln!(
+        "{}: {} triangles, {} spheres, {} boxes, {} planes (loaded in {:.2} s)",
+        scene.name,
+        scene.geometry.triangles.len(),
+        scene.geometry.spheres.len(),
+        scene.geometry.boxes.len(),
+        scene.geometry.planes.len(),
+        scene.load_seconds
+    );
+    Ok(scene)
+}
+
 /// 2 when the error was caused by bad input, 1 otherwise.
 pub fn exit_code(e: &anyhow::Error) -> u8 {
     let bad_input = e

@@ -1,8 +1,91 @@
-//! `raypack rays`.
+//! `raypack rays`: writes a standard ray set of a scene (RAYS.md), or the scene itself
+//! as OBJ (procedural scenes, for other tracers).
+
+use super::{BadInput, bench::prepare, load_scene};
+use anyhow::Context;
+use raypack::rayset::{self, standard};
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// A TOML scene, an OBJ mesh, a scene name of ../shared/scenes/cameras.toml, or spd:NAME[:SIZE].
+    pub scene: String,
+    /// Which set: primary, shadow or diffuse.
+    #[arg(long, default_value = "primary")]
+    pub set: String,
+    /// The rays file to write.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Also write the closest hits of the set (scalar path) to this hits file.
+    #[arg(long)]
+    pub hits: Option<PathBuf>,
+    /// Image width of the primary set (a multiple of 16).
+    #[arg(long, default_value_t = standard::WIDTH)]
+    pub width: u32,
+    /// Image height of the primary set (a multiple of 16).
+    #[arg(long, default_value_t = standard::HEIGHT)]
+    pub height: u32,
+    /// Write the scene's geometry as OBJ (spheres as UV spheres) to this file.
+    #[arg(long)]
+    pub obj: Option<PathBuf>,
+    /// Rings of the UV spheres that --obj writes.
+    #[arg(long, default_value_t = 8)]
+    pub sphere_rings: u32,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`raypack rays` is not available yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.out.is_none() && args.obj.is_none() {
+        return Err(
+            BadInput("nothing to write: give --out F.rays and/or --obj F.obj".into()).into(),
+        );
+    }
+    if !matches!(args.set.as_str(), "primary" | "shadow" | "diffuse") {
+        return Err(BadInput(format!(
+            "--set {}: expected primary, shadow or diffuse",
+            args.set
+        ))
+        .into());
+    }
+    let scene = load_scene(&args.scene)?;
+    if let Some(obj) = &args.obj {
+        raypack::scene::spd::write_obj(obj, &scene.geometry, args.sphere_rings)
+            .with_context(|| format!("writing the OBJ of {}", args.scene))?;
+        println!("wrote {}", obj.display());
+    }
+    let Some(out) = &args.out else {
+        return Ok(());
+    };
+    let (accel, build_seconds, sets) = prepare(&scene, args.width, args.height)?;
+    let (set, hits) = match args.set.as_str() {
+        "primary" => (&sets.primary, Some(&sets.primary_hits)),
+        "shadow" => (&sets.shadow, None),
+        _ => (&sets.diffuse, None),
+    };
+    rayset::write_rays(out, set)?;
+    println!(
+        "{}: {} {} rays of {} (build {:.3} s); light [{}, {}, {}] ({}), offset {:.6}",
+        out.display(),
+        set.len(),
+        args.set,
+        args.scene,
+        build_seconds,
+        sets.light.x,
+        sets.light.y,
+        sets.light.z,
+        sets.light_source.describe(),
+        sets.offset
+    );
+    if let Some(path) = &args.hits {
+        let hits = match hits {
+            Some(h) => h.clone(),
+            None => standard::closest_hits(&accel, &set.rays),
+        };
+        rayset::write_hits(path, &hits)?;
+        println!(
+            "{}: {} hits",
+            path.display(),
+            rayset::Checksum::of_hits(&hits).hits
+        );
+    }
+    Ok(())
 }

@@ -1,8 +1,42 @@
-//! `raypack trace`.
+//! `raypack trace`: traces a rays file and writes the hits file (RAYS.md), so that the
+//! answers can be compared ray by ray with another tracer's.
+
+use super::{bench::build_accel, load_scene};
+use raypack::rayset::{self, Checksum, Mode};
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// A TOML scene, an OBJ mesh, a scene name of ../shared/scenes/cameras.toml, or spd:NAME[:SIZE].
+    pub scene: String,
+    /// The rays file to trace.
+    #[arg(long)]
+    pub rays: PathBuf,
+    /// The hits file to write (closest hits, whatever the set).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// scalar: one ray at a time; packet: 4 consecutive rays per packet.
+    #[arg(long, default_value = "scalar")]
+    pub mode: Mode,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`raypack trace` is not available yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let rays = rayset::read_rays(&args.rays)?;
+    let scene = load_scene(&args.scene)?;
+    let (accel, build_seconds) = build_accel(&scene.geometry);
+    let start = std::time::Instant::now();
+    let hits = rayset::trace::trace_hits(&accel, &rays.rays, args.mode);
+    let seconds = start.elapsed().as_secs_f64();
+    rayset::write_hits(&args.out, &hits)?;
+    println!(
+        "{}: {} rays, {} hits ({} mode, build {:.3} s, trace {:.3} s), checksum {}",
+        args.out.display(),
+        rays.len(),
+        Checksum::of_hits(&hits).hits,
+        args.mode,
+        build_seconds,
+        seconds,
+        Checksum::of_hits(&hits)
+    );
+    Ok(())
 }

@@ -10,13 +10,14 @@ use std::path::PathBuf;
 /// A scene file (TOML) that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{}: cannot read scene file: {source}", path.display())]
+    #[error("{}: cannot read scene file", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// TOML syntax errors and type mismatches, as reported by the TOML parser.
-    #[error("{}:{line}: {message}", path.display())]
+    /// TOML syntax errors, as reported by the TOML parser (`line` 0 when it gives no
+    /// position).
+    #[error("{}{}: {message}", path.display(), line_text(*line))]
     Syntax {
         path: PathBuf,
         line: usize,
@@ -50,18 +51,23 @@ pub enum SceneError {
         path: PathBuf,
         line: usize,
         key: String,
-        source: ObjError,
+        source: Box<ObjError>,
     },
     #[error("{}:{line}: {key}: cannot load the texture", path.display())]
     Texture {
         path: PathBuf,
         line: usize,
         key: String,
-        source: TextureError,
+        source: Box<TextureError>,
     },
-    /// An OBJ given directly (not through a scene file) that cannot be used.
-    #[error(transparent)]
-    Obj(#[from] ObjError),
+}
+
+fn line_text(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
 }
 
 fn suggestion_text(s: &Option<String>) -> String {
@@ -74,7 +80,7 @@ fn suggestion_text(s: &Option<String>) -> String {
 /// A Wavefront OBJ mesh or its MTL material library that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ObjError {
-    #[error("{}: cannot read mesh: {source}", path.display())]
+    #[error("{}: cannot read mesh", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
@@ -94,7 +100,7 @@ pub enum ObjError {
         element: &'static str,
     },
     #[error(
-        "{}:{line}: {element}: index {index} is out of range ({count} {what} defined before this line)",
+        "{}:{line}: {element}: index {index} is out of range ({count} {what} available)",
         path.display()
     )]
     IndexOutOfRange {
@@ -120,7 +126,7 @@ pub enum ObjError {
         what: &'static str,
         max: u64,
     },
-    #[error("{}:{line}: mtllib: cannot read material library {}: {source}", path.display(), mtl.display())]
+    #[error("{}:{line}: mtllib: cannot read material library {}", path.display(), mtl.display())]
     MissingMtl {
         path: PathBuf,
         line: usize,
@@ -144,7 +150,7 @@ pub enum ObjError {
     #[error("{}: readers disagree: {message}", path.display())]
     Inconsistent { path: PathBuf, message: String },
     /// `tobj` refused a file that raypack's own line check accepted.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: cannot parse mesh", path.display())]
     Parse {
         path: PathBuf,
         source: tobj::LoadError,
@@ -154,12 +160,12 @@ pub enum ObjError {
 /// An image texture that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum TextureError {
-    #[error("{}: cannot read texture: {source}", path.display())]
+    #[error("{}: cannot read texture", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{}: cannot decode texture: {source}", path.display())]
+    #[error("{}: cannot decode texture", path.display())]
     Decode {
         path: PathBuf,
         source: image::ImageError,

@@ -9,6 +9,7 @@ pub mod geometry;
 pub mod light;
 pub mod material;
 pub mod obj;
+pub mod spd;
 pub mod texture;
 
 pub use camera::{Camera, CameraFrame};

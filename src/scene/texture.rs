@@ -1,6 +1,12 @@
 //! Textures: linear f32 RGB texels with bilinear filtering and wrap-around.
+//!
+//! Image files are decoded by `image` and converted from sRGB to linear; the procedural
+//! textures the classic scenes use (checker, bricks, marble) are generated here, so no
+//! texture has to come from elsewhere. Generation is deterministic (seeded hashes).
 
+use super::error::TextureError;
 use glam::Vec3;
+use std::path::Path;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
@@ -33,5 +39,299 @@ impl Texture {
         let top = self.texel(x0, y0) * (1.0 - fx) + self.texel(x0 + 1, y0) * fx;
         let bottom = self.texel(x0, y0 + 1) * (1.0 - fx) + self.texel(x0 + 1, y0 + 1) * fx;
         top * (1.0 - fy) + bottom * fy
+    }
+}
+
+/// Largest side of a texture, decoded or generated (64 Mi texels at most).
+pub const MAX_TEXTURE_SIDE: u32 = 8192;
+
+/// The linear value of an sRGB-encoded channel in `[0, 1]` (IEC 61966-2-1).
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Loads a PNG, TGA or JPEG image (format read from its bytes, not its name) as linear
+/// RGB: 8- and 16-bit channels are taken as sRGB-encoded, alpha is dropped. The image's
+/// top row becomes `v = 1` and its bottom row `v = 0`, the OBJ convention.
+pub fn load(path: &Path) -> Result<Texture, TextureError> {
+    let decode = |source| TextureError::Decode {
+        path: path.to_path_buf(),
+        source,
+    };
+    let reader = image::ImageReader::open(path)
+        .map_err(|source| TextureError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .with_guessed_format()
+        .map_err(|source| TextureError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let mut reader = reader;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    limits.max_alloc = Some(1 << 30);
+    reader.limits(limits);
+    let img = reader.decode().map_err(decode)?;
+    let (width, height) = (img.width(), img.height());
+    if width == 0 || height == 0 {
+        return Err(TextureError::Size {
+            path: path.to_path_buf(),
+            width,
+            height,
+            max: MAX_TEXTURE_SIDE,
+        });
+    }
+    let rgb = img.into_rgb32f();
+    let mut texels = Vec::with_capacity(width as usize * height as usize);
+    for row in rgb.as_raw().chunks_exact(3 * width as usize).rev() {
+        texels.extend(row.chunks_exact(3).map(|c| {
+            Vec3::new(
+                srgb_to_linear(c[0]),
+                srgb_to_linear(c[1]),
+                srgb_to_linear(c[2]),
+            )
+        }));
+    }
+    Ok(Texture {
+        width,
+        height,
+        texels,
+    })
+}
+
+impl Texture {
+    /// A texture of `width x height` texels whose texel `(x, y)` is `f(x, y)`.
+    pub fn from_fn(width: u32, height: u32, f: impl Fn(u32, u32) -> Vec3) -> Texture {
+        let mut texels = Vec::with_capacity(width as usize * height as usize);
+        for y in 0..height {
+            for x in 0..width {
+                texels.push(f(x, y));
+            }
+        }
+        Texture {
+            width,
+            height,
+            texels,
+        }
+    }
+}
+
+/// A texture that raypack generates itself, with its parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Procedural {
+    /// `squares x squares` alternating squares of `a` and `b`, `a` at texel (0, 0).
+    /// Tiles seamlessly when `squares` is even.
+    Checker { squares: u32, a: Vec3, b: Vec3 },
+    /// A running-bond brick wall: `rows` courses of `columns` bricks, every other course
+    /// shifted by half a brick, joints `mortar` (a fraction of a course's height) wide.
+    /// Bricks vary slightly in shade, from `seed`. Tiles seamlessly.
+    Bricks {
+        rows: u32,
+        columns: u32,
+        mortar: f32,
+        brick: Vec3,
+        mortar_color: Vec3,
+        seed: u32,
+    },
+    /// Marble: `a` with veins of `b` running along v, bent by `turbulence` times a sum of
+    /// periodic value noise of base frequency `scale` (so the texture tiles).
+    Marble {
+        scale: u32,
+        turbulence: f32,
+        a: Vec3,
+        b: Vec3,
+        seed: u32,
+    },
+}
+
+impl Procedural {
+    /// The texture at `width x height` texels (both at least 1).
+    pub fn generate(&self, width: u32, height: u32) -> Texture {
+        match *self {
+            Procedural::Checker { squares, a, b } => Texture::from_fn(width, height, |x, y| {
+                let i = x as u64 * squares as u64 / width as u64;
+                let j = y as u64 * squares as u64 / height as u64;
+                if (i + j).is_multiple_of(2) { a } else { b }
+            }),
+            Procedural::Bricks {
+                rows,
+                columns,
+                mortar,
+                brick,
+                mortar_color,
+                seed,
+            } => Texture::from_fn(width, height, |x, y| {
+                let fy = (y as f32 + 0.5) / height as f32 * rows as f32;
+                let row = fy.floor() as u32;
+                let shift = if row % 2 == 1 { 0.5 } else { 0.0 };
+                let fx =
+                    ((x as f32 + 0.5) / width as f32 * columns as f32 + shift) % columns as f32;
+                let col = fx.floor() as u32 % columns;
+                let (ux, uy) = (fx - fx.floor(), fy - fy.floor());
+                // Joints as wide across as they are high, in texels.
+                let mx = mortar * (height as f32 / rows as f32) / (width as f32 / columns as f32);
+                if uy < mortar || ux < mx {
+                    mortar_color
+                } else {
+                    brick * (0.85 + 0.3 * hash01(seed, row, col))
+                }
+            }),
+            Procedural::Marble {
+                scale,
+                turbulence,
+                a,
+                b,
+                seed,
+            } => Texture::from_fn(width, height, |x, y| {
+                let (u, v) = (x as f32 / width as f32, y as f32 / height as f32);
+                let mut noise = 0.0;
+                let mut amplitude = 0.5;
+                let mut period = scale.max(1);
+                for octave in 0..5 {
+                    noise += amplitude * value_noise(seed.wrapping_add(octave), period, u, v);
+                    amplitude *= 0.5;
+                    period = period.saturating_mul(2);
+                }
+                let phase = (u * scale.max(1) as f32 + turbulence * noise) * std::f32::consts::TAU;
+                let t = 0.5 + 0.5 * phase.sin();
+                a + (b - a) * t.powf(3.0)
+            }),
+        }
+    }
+}
+
+/// A deterministic pseudo-random number in `[0, 1)` for lattice point `(i, j)`.
+fn hash01(seed: u32, i: u32, j: u32) -> f32 {
+    let mut h = seed
+        .wrapping_mul(0x9E37_79B9)
+        .wrapping_add(i.wrapping_mul(0x85EB_CA6B))
+        ^ j.wrapping_mul(0xC2B2_AE35);
+    h ^= h >> 16;
+    h = h.wrapping_mul(0x7FEB_352D);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x846C_A68B);
+    h ^= h >> 16;
+    (h >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// Smoothly interpolated lattice noise in `[0, 1)` on `[0, 1)^2` with `period` cells per
+/// side, wrapping at the edges.
+fn value_noise(seed: u32, period: u32, u: f32, v: f32) -> f32 {
+    let (x, y) = (u * period as f32, v * period as f32);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
+    let (i, j) = (x0 as u32 % period, y0 as u32 % period);
+    let (i1, j1) = ((i + 1) % period, (j + 1) % period);
+    let top = hash01(seed, i, j) * (1.0 - sx) + hash01(seed, i1, j) * sx;
+    let bottom = hash01(seed, i, j1) * (1.0 - sx) + hash01(seed, i1, j1) * sx;
+    top * (1.0 - sy) + bottom * sy
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn png_is_decoded_to_linear_with_the_top_row_at_v_1() {
+        let path = std::env::temp_dir().join(format!("raypack-tex-{}.png", std::process::id()));
+        // Top pixel white, bottom pixel sRGB 128.
+        let img = image::RgbImage::from_raw(1, 2, vec![255, 255, 255, 128, 128, 128]).unwrap();
+        img.save(&path).unwrap();
+        let t = load(&path).unwrap();
+        assert_eq!((t.width, t.height), (1, 2));
+        let grey = srgb_to_linear(128.0 / 255.0);
+        assert!((grey - 0.21586).abs() < 1e-4, "{grey}");
+        assert_eq!(t.texels[0], Vec3::splat(grey));
+        assert_eq!(t.texels[1], Vec3::ONE);
+    }
+
+    #[test]
+    fn tga_and_jpeg_load_and_the_format_comes_from_the_bytes() {
+        let dir = std::env::temp_dir();
+        let img = image::RgbImage::from_fn(8, 4, |x, _| image::Rgb([x as u8 * 30, 200, 0]));
+        let id = std::process::id();
+        let tga = dir.join(format!("raypack-tex-{id}.tga"));
+        img.save(&tga).unwrap();
+        let t = load(&tga).unwrap();
+        assert_eq!((t.width, t.height), (8, 4));
+        assert_eq!(
+            t.texels[3],
+            Vec3::new(
+                srgb_to_linear(90.0 / 255.0),
+                srgb_to_linear(200.0 / 255.0),
+                0.0
+            )
+        );
+        let jpg = dir.join(format!("raypack-tex-{id}.jpg"));
+        img.save(&jpg).unwrap();
+        let j = load(&jpg).unwrap();
+        assert_eq!((j.width, j.height), (8, 4));
+        assert!((j.texels[0].y - srgb_to_linear(200.0 / 255.0)).abs() < 0.05);
+        // PNG bytes under a .jpg name still decode as PNG.
+        let misnamed = dir.join(format!("raypack-tex-{id}-png.jpg"));
+        img.save_with_format(&misnamed, image::ImageFormat::Png)
+            .unwrap();
+        assert_eq!(load(&misnamed).unwrap(), load(&tga).unwrap());
+    }
+
+    #[test]
+    fn srgb_curve_is_continuous_and_fixes_the_ends() {
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        let below = srgb_to_linear(0.04045);
+        let above = srgb_to_linear(0.040451);
+        assert!((above - below).abs() < 1e-5);
+    }
+
+    #[test]
+    fn checker_alternates_squares() {
+        let (a, b) = (Vec3::ONE, Vec3::ZERO);
+        let t = Procedural::Checker { squares: 4, a, b }.generate(8, 8);
+        assert_eq!(t.texels[0], a);
+        assert_eq!(t.texels[1], a);
+        assert_eq!(t.texels[2], b);
+        assert_eq!(t.texels[2 * 8], b);
+        assert_eq!(t.texels[2 * 8 + 2], a);
+    }
+
+    #[test]
+    fn generated_textures_are_deterministic_and_bounded() {
+        let kinds = [
+            Procedural::Bricks {
+                rows: 8,
+                columns: 4,
+                mortar: 0.1,
+                brick: Vec3::new(0.6, 0.2, 0.1),
+                mortar_color: Vec3::splat(0.7),
+                seed: 5,
+            },
+            Procedural::Marble {
+                scale: 4,
+                turbulence: 3.0,
+                a: Vec3::splat(0.9),
+                b: Vec3::splat(0.2),
+                seed: 9,
+            },
+        ];
+        for k in &kinds {
+            let t = k.generate(64, 32);
+            assert_eq!(t, k.generate(64, 32));
+            assert_eq!(t.texels.len(), 64 * 32);
+            assert!(
+                t.texels
+                    .iter()
+                    .all(|c| c.is_finite() && c.min_element() >= 0.0)
+            );
+            let first = t.texels[0];
+            assert!(t.texels.iter().any(|&c| c != first), "{k:?} is flat");
+        }
     }
 }

@@ -1,0 +1,211 @@
+//! The scenes that `raypack bench`, `trace` and `rays` accept, with the camera their
+//! ray sets are made from:
+//!
+//! - the name of a scene in `cameras.toml` of the shared benchmark scenes (`sponza`,
+//!   `bunny`, `conference`, `cornell_box`), found in `$RAYPACK_SCENES` when it is set,
+//!   else in `../shared/scenes` from the working directory or beside the source tree;
+//!   the meshes are never copied into the repository;
+//! - an OBJ file (the camera of `cameras.toml` when the file is one of those scenes,
+//!   else a view of the whole scene box);
+//! - a TOML scene file (its own camera);
+//! - `spd:NAME[:SIZE]`, one of Eric Haines' Standard Procedural Databases
+//!   ([`crate::scene::spd`]) with its published viewpoint.
+
+use super::View;
+use crate::scene::spd::{self, SpdError};
+use crate::scene::{Geometry, ObjError, SceneError};
+use glam::DVec3;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Environment variable naming the folder of the shared benchmark scenes.
+pub const SCENES_ENV: &str = "RAYPACK_SCENES";
+
+#[derive(Debug, thiserror::Error)]
+pub enum BenchSceneError {
+    #[error(
+        "scene `{name}`: the benchmark scenes are expected in ../shared/scenes beside the repository (with cameras.toml); looked in {}; set {SCENES_ENV} to their folder",
+        looked.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    SharedMissing { name: String, looked: Vec<PathBuf> },
+    #[error("scene `{name}` is not a file, an spd:NAME[:SIZE] scene, or a scene of {} (known: {})", cameras.display(), known.join(", "))]
+    Unknown {
+        name: String,
+        cameras: PathBuf,
+        known: Vec<String>,
+    },
+    #[error("{}: {message}", path.display())]
+    CamerasFile { path: PathBuf, message: String },
+    #[error("{}: {message}", path.display())]
+    Load { path: PathBuf, message: String },
+    #[error(transparent)]
+    Spd(#[from] SpdError),
+    #[error(transparent)]
+    Obj(#[from] ObjError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+}
+
+/// A scene ready to trace: its geometry and the camera of its primary set.
+#[derive(Clone, Debug)]
+pub struct BenchScene {
+    /// What the user named (a cameras.toml name, a path, an spd spec).
+    pub name: String,
+    pub geometry: Geometry,
+    pub view: View,
+    /// Seconds spent reading or generating the geometry.
+    pub load_seconds: f64,
+}
+
+/// One entry of cameras.toml.
+#[derive(Clone, Debug, Deserialize)]
+pub struct CameraEntry {
+    pub obj: String,
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    pub vfov_deg: f64,
+    pub triangles: Option<u64>,
+}
+
+impl CameraEntry {
+    pub fn view(&self) -> View {
+        View {
+            eye: DVec3::from_array(self.eye),
+            target: DVec3::from_array(self.target),
+            up: DVec3::from_array(self.up),
+            vfov_deg: self.vfov_deg,
+        }
+    }
+}
+
+/// Where the shared scenes folder may be, in the order it is looked for: only
+/// `$RAYPACK_SCENES` when it is set, else `../shared/scenes` from the working directory
+/// and from the source tree.
+pub fn shared_scenes_candidates() -> Vec<PathBuf> {
+    match std::env::var_os(SCENES_ENV) {
+        Some(dir) => vec![PathBuf::from(dir)],
+        None => vec![
+            PathBuf::from("../shared/scenes"),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"),
+        ],
+    }
+}
+
+/// The shared scenes folder (the first candidate holding cameras.toml).
+pub fn shared_scenes_dir() -> Option<PathBuf> {
+    shared_scenes_candidates()
+        .into_iter()
+        .find(|d| d.join("cameras.toml").is_file())
+}
+
+/// Parses cameras.toml.
+pub fn read_cameras(path: &Path) -> Result<BTreeMap<String, CameraEntry>, BenchSceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| BenchSceneError::CamerasFile {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    toml::from_str(&text).map_err(|e| BenchSceneError::CamerasFile {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// The cameras.toml entry and mesh path of shared scene `name`.
+pub fn shared_scene(name: &str) -> Result<(CameraEntry, PathBuf), BenchSceneError> {
+    let dir = shared_scenes_dir().ok_or_else(|| BenchSceneError::SharedMissing {
+        name: name.to_string(),
+        looked: shared_scenes_candidates(),
+    })?;
+    let cameras = dir.join("cameras.toml");
+    let mut entries = read_cameras(&cameras)?;
+    match entries.remove(name) {
+        Some(e) => {
+            let obj = dir.join(&e.obj);
+            Ok((e, obj))
+        }
+        None => Err(BenchSceneError::Unknown {
+            name: name.to_string(),
+            cameras,
+            known: entries.into_keys().collect(),
+        }),
+    }
+}
+
+/// A view of the whole scene box from the front, above and to the right, for meshes
+/// without a standard camera.
+pub fn overview(geometry: &Geometry) -> View {
+    let (lo, hi, diag) = super::standard::scene_box(geometry);
+    let centre = (lo + hi) * 0.5;
+    let diag = if diag > 0.0 { diag } else { 1.0 };
+    View {
+        eye: centre + DVec3::new(0.35, 0.45, 1.0).normalize() * diag,
+        target: centre,
+        up: DVec3::Y,
+        vfov_deg: 50.0,
+    }
+}
+
+/// Reads an OBJ mesh's geometry (triangle ids in file order, as RAYS.md numbers them).
+fn load_obj(path: &Path) -> Result<Geometry, BenchSceneError> {
+    let mesh = crate::scene::obj::load(path)?;
+    Ok(Geometry {
+        vertices: mesh.positions,
+        triangles: mesh.triangles,
+        ..Geometry::default()
+    })
+}
+
+/// Reads a TOML scene's geometry and camera.
+fn load_toml(path: &Path) -> Result<(Geometry, View), BenchSceneError> {
+    let scene = crate::scene::file::load(path)?;
+    let view = View::from(&scene.camera);
+    Ok((scene.geometry, view))
+}
+
+/// The camera of an OBJ file that is one of the shared scenes, if it is one.
+fn shared_view_of(path: &Path) -> Option<View> {
+    let dir = shared_scenes_dir()?;
+    let wanted = path.canonicalize().ok()?;
+    read_cameras(&dir.join("cameras.toml"))
+        .ok()?
+        .into_values()
+        .find(|e| dir.join(&e.obj).canonicalize().ok().as_deref() == Some(&wanted))
+        .map(|e| e.view())
+}
+
+/// Loads the scene named by `arg` (see the module docs).
+pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
+    let start = Instant::now();
+    let path = Path::new(arg);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let (geometry, view) = if let Some(spec) = arg.strip_prefix("spd:") {
+        let s = spd::generate_spec(spec)?;
+        (s.geometry, s.view)
+    } else if ext.as_deref() == Some("obj") {
+        let g = load_obj(path)?;
+        let view = shared_view_of(path).unwrap_or_else(|| overview(&g));
+        (g, view)
+    } else if ext.as_deref() == Some("toml") {
+        load_toml(path)?
+    } else if path.is_file() {
+        return Err(BenchSceneError::Load {
+            path: path.to_path_buf(),
+            message: "not a scene: expected a .toml scene or an .obj mesh".into(),
+        });
+    } else {
+        let (entry, obj) = shared_scene(arg)?;
+        (load_obj(&obj)?, entry.view())
+    };
+    Ok(BenchScene {
+        name: arg.to_string(),
+        geometry,
+        view,
+        load_seconds: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,241 @@
+//! Tracing a ray set through an [`Accel`]: scalar mode calls `intersect`/`occluded` per
+//! ray, packet mode calls `intersect_packet`/`occluded_packet` on every [`LANES`]
+//! consecutive rays (a 2x2 quad of an image set in packet order; lanes past the end of
+//! the set are inactive).
+//!
+//! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a
+//! chunk to packets, traces them and folds every answer into a [`Checksum`] (hit count
+//! and sum of primitive ids, as the Embree harness folds its answers), so the work
+//! cannot be optimised away and two modes or two tracers can be compared.
+
+use crate::accel::{Accel, RayPacket};
+use crate::ray::{Hit, Ray};
+use crate::simd::LANES;
+use rayon::prelude::*;
+use std::fmt;
+use std::str::FromStr;
+
+/// Rays per unit of work handed to a thread (the harness's chunk size).
+pub const CHUNK: usize = 4096;
+
+const _: () = assert!(CHUNK.is_multiple_of(LANES));
+
+/// Which intersector entry points trace the rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Mode {
+    Scalar,
+    Packet,
+}
+
+impl Mode {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Scalar => "scalar",
+            Mode::Packet => "packet",
+        }
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Mode, String> {
+        match s {
+            "scalar" => Ok(Mode::Scalar),
+            "packet" => Ok(Mode::Packet),
+            _ => Err(format!("unknown mode `{s}` (expected scalar or packet)")),
+        }
+    }
+}
+
+/// Closest hit or any hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Query {
+    Closest,
+    Occluded,
+}
+
+/// Hit count and wrapping sum of the hit primitive ids (0 for occlusion queries, which
+/// return no id).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Checksum {
+    pub hits: u64,
+    pub prim_sum: u64,
+}
+
+impl Checksum {
+    #[inline]
+    fn add_prim(&mut self, prim: u32) {
+        if prim != crate::ray::NO_HIT {
+            self.hits += 1;
+            self.prim_sum = self.prim_sum.wrapping_add(prim as u64);
+        }
+    }
+
+    pub fn merge(self, o: Checksum) -> Checksum {
+        Checksum {
+            hits: self.hits + o.hits,
+            prim_sum: self.prim_sum.wrapping_add(o.prim_sum),
+        }
+    }
+
+    /// Checksum of a hits array.
+    pub fn of_hits(hits: &[Hit]) -> Checksum {
+        let mut c = Checksum::default();
+        for h in hits {
+            c.add_prim(h.prim);
+        }
+        c
+    }
+}
+
+impl fmt::Display for Checksum {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}", self.hits, self.prim_sum)
+    }
+}
+
+/// Closest hits of `rays` into `out` (same length) in `mode`.
+pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, out: &mut [Hit]) {
+    assert_eq!(rays.len(), out.len());
+    match mode {
+        Mode::Scalar => {
+            for (r, h) in rays.iter().zip(out.iter_mut()) {
+                *h = accel.intersect(r).unwrap_or(Hit::MISS);
+            }
+        }
+        Mode::Packet => {
+            for (quad, hq) in rays.chunks(LANES).zip(out.chunks_mut(LANES)) {
+                let hp = accel.intersect_packet(&RayPacket::from_rays(quad));
+                for (i, h) in hq.iter_mut().enumerate() {
+                    *h = hp.lane(i);
+                }
+            }
+        }
+    }
+}
+
+/// Closest hits of a whole set in `mode`, in chunks over the current rayon pool.
+pub fn trace_hits<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode) -> Vec<Hit> {
+    let mut hits = vec![Hit::MISS; rays.len()];
+    hits.par_chunks_mut(CHUNK)
+        .zip(rays.par_chunks(CHUNK))
+        .for_each(|(h, r)| intersect_into(accel, r, mode, h));
+    hits
+}
+
+/// Traces one chunk and folds the answers into a checksum (the timed kernel).
+pub fn checksum_chunk<A: Accel + ?Sized>(
+    accel: &A,
+    rays: &[Ray],
+    mode: Mode,
+    query: Query,
+) -> Checksum {
+    let mut c = Checksum::default();
+    match (mode, query) {
+        (Mode::Scalar, Query::Closest) => {
+            for r in rays {
+                if let Some(h) = accel.intersect(r) {
+                    c.add_prim(h.prim);
+                }
+            }
+        }
+        (Mode::Scalar, Query::Occluded) => {
+            c.hits = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
+        }
+        (Mode::Packet, Query::Closest) => {
+            for quad in rays.chunks(LANES) {
+                let hp = accel.intersect_packet(&RayPacket::from_rays(quad));
+                for &prim in &hp.prim.as_array()[..quad.len()] {
+                    c.add_prim(prim);
+                }
+            }
+        }
+        (Mode::Packet, Query::Occluded) => {
+            for quad in rays.chunks(LANES) {
+                let bits = accel.occluded_packet(&RayPacket::from_rays(quad));
+                c.hits += (bits & ((1u32 << quad.len()) - 1)).count_ones() as u64;
+            }
+        }
+    }
+    c
+}
+
+/// Traces a whole set in chunks of [`CHUNK`] rays over the current rayon pool.
+pub fn checksum_set<A: Accel + ?Sized>(
+    accel: &A,
+    rays: &[Ray],
+    mode: Mode,
+    query: Query,
+) -> Checksum {
+    rays.par_chunks(CHUNK)
+        .map(|r| checksum_chunk(accel, r, mode, query))
+        .reduce(Checksum::default, Checksum::merge)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::brute::BruteForce;
+    use crate::scene::{Geometry, Sphere};
+    use glam::Vec3;
+
+    fn spheres_and_rays() -> (Geometry, Vec<Ray>) {
+        let g = Geometry {
+            spheres: (0..9)
+                .map(|i| Sphere {
+                    center: Vec3::new((i % 3) as f32 * 2.0 - 2.0, (i / 3) as f32 * 2.0 - 2.0, 5.0),
+                    radius: 0.8,
+                })
+                .collect(),
+            ..Geometry::default()
+        };
+        let rays = (0..103)
+            .map(|i| {
+                let d = Vec3::new(
+                    (i % 11) as f32 * 0.07 - 0.35,
+                    (i / 11) as f32 * 0.07 - 0.35,
+                    1.0,
+                );
+                Ray::new(
+                    Vec3::ZERO,
+                    d.normalize(),
+                    0.0,
+                    if i % 3 == 0 { 4.5 } else { f32::INFINITY },
+                )
+            })
+            .collect();
+        (g, rays)
+    }
+
+    #[test]
+    fn modes_and_chunkings_agree() {
+        let (g, rays) = spheres_and_rays();
+        let accel = BruteForce::new(&g);
+        let scalar = trace_hits(&accel, &rays, Mode::Scalar);
+        assert_eq!(trace_hits(&accel, &rays, Mode::Packet), scalar);
+        let c = Checksum::of_hits(&scalar);
+        assert!(c.hits > 10 && c.hits < rays.len() as u64, "{c}");
+        for mode in [Mode::Scalar, Mode::Packet] {
+            assert_eq!(checksum_set(&accel, &rays, mode, Query::Closest), c);
+            let occluded = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
+            let o = checksum_set(&accel, &rays, mode, Query::Occluded);
+            assert_eq!(
+                o,
+                Checksum {
+                    hits: occluded,
+                    prim_sum: 0
+                }
+            );
+            // Any hit exists exactly where a closest hit does.
+            assert_eq!(occluded, c.hits);
+        }
+        assert_eq!("packet".parse::<Mode>(), Ok(Mode::Packet));
+        assert!("simd".parse::<Mode>().is_err());
+    }
+}

@@ -1,0 +1,358 @@
+//! The `rays`, `trace` and `bench` subcommands end to end: files in the layout of
+//! RAYS.md, hits that match the in-process scalar path, and the errors users see.
+
+use raypack::accel::Accel;
+use raypack::accel::brute::BruteForce;
+use raypack::ray::Hit;
+use raypack::rayset::{self, RaySetError};
+use raypack::scene::spd;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn raypack(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raypack"))
+        .args(args)
+        .output()
+        .expect("run raypack")
+}
+
+fn raypack_env(args: &[&str], key: &str, value: &str) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raypack"))
+        .args(args)
+        .env(key, value)
+        .output()
+        .expect("run raypack")
+}
+
+fn ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "raypack failed ({:?}):\n{}\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A fresh directory for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("raypack-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+const SCENE: &str = "spd:tetra:3";
+
+/// `raypack rays SCENE --set SET --out PATH --width W --height H`, which must succeed.
+fn write_set(set: &str, path: &Path, width: u32, height: u32) {
+    let (w, h) = (width.to_string(), height.to_string());
+    ok(&raypack(&[
+        "rays",
+        SCENE,
+        "--set",
+        set,
+        "--out",
+        s(path),
+        "--width",
+        &w,
+        "--height",
+        &h,
+    ]));
+}
+
+#[test]
+fn trace_writes_the_hits_of_the_in_process_scalar_path() {
+    let dir = scratch("trace");
+    let oracle = BruteForce::new(&spd::generate_spec("tetra:3").unwrap().geometry);
+    for set in ["primary", "shadow", "diffuse"] {
+        let rays_path = dir.join(format!("{set}.rays"));
+        write_set(set, &rays_path, 64, 48);
+        let rays = rayset::read_rays(&rays_path).unwrap();
+        let expected: Vec<Hit> = rays
+            .rays
+            .iter()
+            .map(|r| oracle.intersect(r).unwrap_or(Hit::MISS))
+            .collect();
+        let hit_count = expected.iter().filter(|h| h.is_hit()).count();
+        assert!(hit_count > 0, "{set}: the set must exercise hits");
+        if set == "primary" {
+            assert!(hit_count < rays.len(), "and misses");
+        }
+        for mode in ["scalar", "packet"] {
+            let hits_path = dir.join(format!("{set}.{mode}.hits"));
+            ok(&raypack(&[
+                "trace",
+                SCENE,
+                "--rays",
+                s(&rays_path),
+                "--out",
+                s(&hits_path),
+                "--mode",
+                mode,
+            ]));
+            let hits = rayset::read_hits(&hits_path).unwrap();
+            assert_eq!(hits.len(), rays.len());
+            for (i, (got, want)) in hits.iter().zip(&expected).enumerate() {
+                assert_eq!(
+                    got.prim, want.prim,
+                    "{set} {mode} ray {i}: {:?}",
+                    rays.rays[i]
+                );
+                assert_eq!(got.t.to_bits(), want.t.to_bits(), "{set} {mode} ray {i}");
+                assert_eq!(got.u.to_bits(), want.u.to_bits(), "{set} {mode} ray {i}");
+                assert_eq!(got.v.to_bits(), want.v.to_bits(), "{set} {mode} ray {i}");
+            }
+        }
+    }
+    // Outputs are renamed into place: no temporary file is left behind.
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let name = e.unwrap().file_name().into_string().unwrap();
+        assert!(!name.contains(".tmp."), "{name}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn primary_rays_file_has_the_documented_layout_and_packet_order() {
+    let dir = scratch("layout");
+    let path = dir.join("primary.rays");
+    let (w, h) = (48u32, 32u32);
+    write_set("primary", &path, 48, 32);
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[..8], b"RAYS0001");
+    let count = u64::from_le_bytes(bytes[8..16].try_into().unwrap());
+    assert_eq!(count, (w * h) as u64);
+    assert_eq!(u32::from_le_bytes(bytes[16..20].try_into().unwrap()), w);
+    assert_eq!(u32::from_le_bytes(bytes[20..24].try_into().unwrap()), h);
+    assert_eq!(bytes.len(), 24 + 32 * count as usize);
+
+    // Recover each ray's pixel from its direction with the camera of RAYS.md.
+    let view = spd::generate_spec("tetra:3").unwrap().view;
+    let forward = (view.target - view.eye).normalize();
+    let right = forward.cross(view.up).normalize();
+    let up = right.cross(forward);
+    let tan_half = (view.vfov_deg.to_radians() / 2.0).tan();
+    let f = |rec: &[u8], k: usize| f32::from_le_bytes(rec[4 * k..4 * k + 4].try_into().unwrap());
+    let pixels: Vec<(i64, i64)> = bytes[24..]
+        .chunks_exact(32)
+        .map(|rec| {
+            assert_eq!(
+                [f(rec, 0), f(rec, 1), f(rec, 2)],
+                view.eye.as_vec3().to_array()
+            );
+            assert_eq!((f(rec, 3), f(rec, 7)), (0.0, f32::INFINITY));
+            let d = glam::DVec3::new(f(rec, 4) as f64, f(rec, 5) as f64, f(rec, 6) as f64);
+            assert!((d.length() - 1.0).abs() < 1e-6);
+            let (x, y) = (d.dot(right) / d.dot(forward), d.dot(up) / d.dot(forward));
+            let px = ((x / (tan_half * w as f64 / h as f64) + 1.0) / 2.0 * w as f64 - 0.5).round();
+            let py = ((1.0 - y / tan_half) / 2.0 * h as f64 - 0.5).round();
+            (px as i64, py as i64)
+        })
+        .collect();
+    for (i, &(x, y)) in pixels.iter().enumerate() {
+        // Tile i / 256 in row-major order of the 16x16 tiles.
+        let tile = i as i64 / 256;
+        let tiles_x = (w / 16) as i64;
+        assert_eq!(
+            (x / 16, y / 16),
+            (tile % tiles_x, tile / tiles_x),
+            "ray {i}"
+        );
+        if i % 4 == 0 {
+            assert!(
+                x % 2 == 0 && y % 2 == 0,
+                "quad {} starts at ({x}, {y})",
+                i / 4
+            );
+            let quad = [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)];
+            assert_eq!(&pixels[i..i + 4], &quad, "rays {i}..{}", i + 4);
+            // Quads are row-major inside the tile.
+            let q = (i as i64 % 256) / 4;
+            assert_eq!(((x % 16) / 2, (y % 16) / 2), (q % 8, q / 8));
+        }
+    }
+    let mut seen = pixels.clone();
+    seen.sort();
+    seen.dedup();
+    assert_eq!(seen.len(), (w * h) as usize, "every pixel exactly once");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_ray_files_are_reported_with_file_and_field() {
+    let dir = scratch("bad");
+    let good = dir.join("good.rays");
+    write_set("primary", &good, 16, 16);
+    let bytes = std::fs::read(&good).unwrap();
+
+    let magic = dir.join("magic.rays");
+    let mut b = bytes.clone();
+    b[..8].copy_from_slice(b"HITS0001");
+    std::fs::write(&magic, &b).unwrap();
+    let truncated = dir.join("truncated.rays");
+    std::fs::write(&truncated, &bytes[..bytes.len() - 10]).unwrap();
+
+    for (path, expect) in [
+        (&magic, "bad magic \"HITS0001\""),
+        (&truncated, "truncated: record 255 field `dy`"),
+    ] {
+        let out_path = dir.join("out.hits");
+        let out = raypack(&["trace", SCENE, "--rays", s(path), "--out", s(&out_path)]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(s(path)) && err.contains(expect), "{err}");
+        assert!(!out_path.exists(), "no output on bad input");
+        // The library reports the same through its typed error.
+        let e = rayset::read_rays(path).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                RaySetError::BadMagic { .. } | RaySetError::Truncated { .. }
+            ),
+            "{e}"
+        );
+    }
+    let out = raypack(&[
+        "trace",
+        SCENE,
+        "--rays",
+        s(&dir.join("missing.rays")),
+        "--out",
+        s(&dir.join("o.hits")),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.rays"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bench_prints_agreeing_checksums_and_writes_json() {
+    let dir = scratch("bench");
+    let json = dir.join("bench.json");
+    let out = raypack(&[
+        "bench",
+        "spd:balls:2",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--repeat",
+        "2",
+        "--threads",
+        "1,2",
+        "--json",
+        s(&json),
+    ]);
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("median") && !stdout.contains("differs"),
+        "{stdout}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(v["machine"]["cores"].as_u64().unwrap() >= 1);
+    assert!(!v["machine"]["cpu"].as_str().unwrap().is_empty());
+    assert_eq!(v["scene"], "spd:balls:2");
+    assert_eq!(v["spheres"], 91);
+    assert!(v["build_seconds"].as_f64().unwrap() >= 0.0);
+    let rows = v["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 3 * 2 * 2, "sets x modes x thread counts");
+    for set in ["primary", "shadow", "diffuse"] {
+        let sums: Vec<&str> = rows
+            .iter()
+            .filter(|r| r["set"] == set)
+            .map(|r| r["checksum"].as_str().unwrap())
+            .collect();
+        assert!(sums.iter().all(|c| *c == sums[0]), "{set}: {sums:?}");
+    }
+    for r in rows {
+        let (lo, med, hi) = (
+            r["mrays_min"].as_f64().unwrap(),
+            r["mrays_median"].as_f64().unwrap(),
+            r["mrays_max"].as_f64().unwrap(),
+        );
+        assert!(lo > 0.0 && lo <= med && med <= hi, "{r}");
+    }
+    assert_eq!(rows[0]["rays"], 32 * 32);
+
+    // --rays DIR traces ray files instead: the same rays give the same checksum.
+    let primary = dir.join("primary.rays");
+    ok(&raypack(&[
+        "rays",
+        "spd:balls:2",
+        "--out",
+        s(&primary),
+        "--width",
+        "32",
+        "--height",
+        "32",
+    ]));
+    let json2 = dir.join("files.json");
+    ok(&raypack(&[
+        "bench",
+        "spd:balls:2",
+        "--rays",
+        s(&dir),
+        "--sets",
+        "primary",
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+        "--json",
+        s(&json2),
+    ]));
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json2).unwrap()).unwrap();
+    assert_eq!(w["results"][0]["checksum"], rows[0]["checksum"]);
+    assert_eq!(
+        w["results"].as_array().unwrap().len(),
+        2,
+        "scalar and packet"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bench_without_the_shared_scenes_says_where_they_belong() {
+    let out = raypack_env(
+        &["bench", "sponza"],
+        "RAYPACK_SCENES",
+        "/nonexistent/raypack-scenes",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("../shared/scenes") && err.contains("/nonexistent/raypack-scenes"),
+        "{err}"
+    );
+    let out = raypack(&["bench", "spd:teapot"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = raypack(&["bench", "spd:balls:1", "--sets", "primary,caustic"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn spd_scenes_export_to_obj() {
+    let dir = scratch("obj");
+    let obj = dir.join("rings.obj");
+    ok(&raypack(&[
+        "rays",
+        "spd:rings:1",
+        "--obj",
+        s(&obj),
+        "--sphere-rings",
+        "3",
+    ]));
+    let text = std::fs::read_to_string(&obj).unwrap();
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    // One ring: 30 spheres of 6 segments x 3 bands, 30 six-sided tubes, the floor.
+    assert_eq!(faces, 30 * 6 * 3 + 30 * 12 + 2);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

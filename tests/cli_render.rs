@@ -1,0 +1,160 @@
+//! `raypack render` end to end: every shipped scene renders, the image has the asked size
+//! and is not blank, PFM output matches PNG output, the same seed gives the same image on
+//! any thread count, and bad arguments exit with 2.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn raypack(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raypack"))
+        .args(args)
+        .output()
+        .expect("run the raypack binary")
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("raypack-cli-render-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn shipped_scenes() -> Vec<PathBuf> {
+    let dir = repo().join("scenes");
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    scenes.sort();
+    assert!(!scenes.is_empty(), "no scene files in {}", dir.display());
+    scenes
+}
+
+fn check(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what}: exit {:?}\nstdout:\n{}\nstderr:\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn every_shipped_scene_renders() {
+    let dir = scratch("all");
+    for scene in shipped_scenes() {
+        let name = scene.file_stem().unwrap().to_string_lossy().into_owned();
+        let png = dir.join(format!("{name}.png"));
+        let out = raypack(&[
+            "render",
+            s(&scene),
+            "-o",
+            s(&png),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--threads",
+            "2",
+        ]);
+        check(&out, &name);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        for word in ["render", "primary", "shadow", "rays/s"] {
+            assert!(
+                stdout.contains(word),
+                "{name}: summary lacks {word}:\n{stdout}"
+            );
+        }
+        let img = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (64, 48), "{name}");
+        let first = img.get_pixel(0, 0).0;
+        assert!(
+            img.pixels().any(|p| p.0 != first),
+            "{name}: every pixel is {first:?}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pfm_output_matches_png_and_threads_do_not_change_it() {
+    let dir = scratch("pfm");
+    let scene = shipped_scenes().pop().unwrap();
+    let size = ["--width", "40", "--height", "30", "--seed", "3"];
+    let mut outputs = Vec::new();
+    for (threads, name) in [("1", "one.pfm"), ("2", "two.pfm"), ("2", "two.png")] {
+        let path = dir.join(name);
+        let mut args = vec!["render", s(&scene), "-o", s(&path), "--threads", threads];
+        args.extend(size);
+        check(&raypack(&args), name);
+        outputs.push(path);
+    }
+    let one = std::fs::read(&outputs[0]).unwrap();
+    let two = std::fs::read(&outputs[1]).unwrap();
+    assert!(one == two, "1 and 2 threads wrote different PFM files");
+    let film = raypack::render::Film::read_pfm(&outputs[0]).unwrap();
+    let png = image::open(&outputs[2]).unwrap().to_rgb8();
+    assert_eq!(png.as_raw(), &film.to_srgb8());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_arguments_exit_with_2_and_write_nothing() {
+    let dir = scratch("bad");
+    let scene = shipped_scenes().pop().unwrap();
+    let png = dir.join("x.png");
+    let missing = dir.join("no-such-scene.toml");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--width", "0"], "--width"),
+        (vec!["--height", "100000"], "--height"),
+        (vec!["--spp", "3"], "--spp"),
+        (vec!["--spp", "0"], "--spp"),
+        (vec!["--threads", "0"], "--threads"),
+        (vec!["--seed", "minus-one"], "--seed"),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["render", s(&scene), "-o", s(&png)];
+        args.extend(&extra);
+        let out = raypack(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(stderr.contains(needle), "{extra:?}: {stderr}");
+    }
+    let out = raypack(&["render", s(&missing), "-o", s(&png)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("no-such-scene.toml"), "{stderr}");
+    assert!(!png.exists());
+    // An output directory that does not exist is not bad input but a failed write.
+    let nowhere = dir.join("missing").join("x.png");
+    let out = raypack(&[
+        "render",
+        s(&scene),
+        "-o",
+        s(&nowhere),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        std::fs::read_dir(&dir).unwrap().next().is_none(),
+        "files left behind"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,88 @@
+//! Every scene in scenes/ loads, and the committed mesh is the generator's output.
+
+use raypack::scene::{AntiAlias, Light, file, obj};
+use std::path::PathBuf;
+
+fn scenes_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+fn scene_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
+        .expect("scenes/ is readable")
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn every_scene_loads() {
+    let files = scene_files();
+    assert!(
+        files.len() >= 7,
+        "expected the seven tutorial scenes, found {files:?}"
+    );
+    for f in &files {
+        let s = file::load(f).unwrap_or_else(|e| panic!("{e}"));
+        let g = &s.geometry;
+        assert!(g.prim_count() > 0, "{}", f.display());
+        assert_eq!(s.prim_material.len(), g.prim_count() as usize);
+        assert!(
+            s.prim_material
+                .iter()
+                .all(|&m| (m as usize) < s.materials.len())
+        );
+        assert!(!s.lights.is_empty(), "{} has no light", f.display());
+        assert!(s.normals.is_empty() || s.normals.len() == g.vertices.len());
+        assert!(s.uvs.is_empty() || s.uvs.len() == g.vertices.len());
+    }
+}
+
+#[test]
+fn tutorial_scenes_have_their_features() {
+    let load = |name: &str| file::load(&scenes_dir().join(name)).unwrap_or_else(|e| panic!("{e}"));
+    let p1 = load("part1.toml");
+    assert_eq!(
+        (
+            p1.geometry.planes.len(),
+            p1.geometry.spheres.len(),
+            p1.lights.len()
+        ),
+        (1, 2, 2)
+    );
+    let p3 = load("part3.toml");
+    assert!(
+        p3.materials
+            .iter()
+            .any(|m| m.refraction > 0.0 && m.absorption > 0.0)
+    );
+    assert_eq!(p3.settings.antialias, AntiAlias::Adaptive(3));
+    assert_eq!(load("part4.toml").geometry.spheres.len(), 3 + 256);
+    let p5 = load("part5.toml");
+    assert!(
+        p5.lights
+            .iter()
+            .any(|l| matches!(l, Light::Area { samples: 16, .. }))
+    );
+    assert!(p5.materials.iter().any(|m| m.glossiness > 0.0));
+    let p6 = load("part6.toml");
+    assert_eq!(p6.textures.len(), 3);
+    assert!(p6.materials.iter().any(|m| m.texture.is_some()));
+    let p7 = load("part7.toml");
+    assert_eq!(p7.geometry.triangles.len(), 1536);
+    assert!(!p7.geometry.spheres.is_empty());
+}
+
+#[test]
+fn knot_obj_is_the_generator_output() {
+    let path = scenes_dir().join("knot.obj");
+    let committed = std::fs::read_to_string(&path).expect("scenes/knot.obj is readable");
+    assert!(
+        committed == obj::part7_knot_obj(),
+        "{} differs from raypack::scene::obj::part7_knot_obj(); regenerate it with \
+         `cargo run --release --example knot > scenes/knot.obj`",
+        path.display()
+    );
+}
