@@ -263,16 +263,16 @@ fn triaccel_packet_matches_scalar() {
     run_kernel(
         "TriAccel::intersect_packet",
         0x7121,
-        |rng, n| {
+        |rng, _| {
             let tri = random_triangle(rng);
-            (tri, TriAccel::new(tri[0], tri[1], tri[2], n as u32))
+            (tri, TriAccel::new(tri[0], tri[1], tri[2]))
         },
         |rng, (tri, _)| {
             let p = point_on(rng, *tri);
             ray_at(rng, p)
         },
-        |(_, acc), r| acc.intersect(r, r.t_max),
-        |(_, acc), p| acc.intersect_packet(p, p.active, p.t_max),
+        |(tri, acc), r| acc.intersect(r, r.t_max, tri),
+        |(tri, acc), p| acc.intersect_packet(p, p.active, p.t_max, tri),
     );
 }
 

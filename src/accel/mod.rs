@@ -12,13 +12,21 @@ pub mod prims;
 pub mod prims_packet;
 pub mod triaccel;
 pub mod triaccel_packet;
+pub mod watertight;
 
 use crate::ray::{Hit, Ray};
 use crate::scene::{Aabb, Geometry, Plane, Sphere};
+use glam::Vec3;
 pub use packet::{HitPacket, RayPacket};
 use triaccel::TriAccel;
 
 /// An intersector over one scene's primitives.
+///
+/// Numeric edge cases have one defined answer in every intersector and both paths: a
+/// ray with a NaN or infinite origin or direction component, a zero direction, or
+/// `!(t_min <= t_max)` hits nothing (`intersect` is `None`, `occluded` false); a ray
+/// starting exactly on a surface, an edge or a split plane gets the closest hit with
+/// `t > t_min` strictly, the same as brute force's, bit for bit.
 pub trait Accel: Sync {
     /// Bounds of the bounded primitives (planes excluded).
     fn bounds(&self) -> Aabb;
@@ -54,6 +62,8 @@ pub trait Accel: Sync {
 #[derive(Clone, Debug, Default)]
 pub struct Prims {
     pub tris: Vec<TriAccel>,
+    /// Each triangle's corners, read only when the exact edge rule decides a test.
+    pub corners: Vec<[Vec3; 3]>,
     pub spheres: Vec<Sphere>,
     pub boxes: Vec<Aabb>,
     pub planes: Vec<Plane>,
@@ -72,6 +82,9 @@ impl Prims {
         let plane_base = box_base + g.boxes.len() as u32;
         Prims {
             tris: TriAccel::build_all(g),
+            corners: (0..g.triangles.len() as u32)
+                .map(|i| g.triangle(i))
+                .collect(),
             spheres: g.spheres.clone(),
             boxes: g.boxes.clone(),
             planes: g.planes.clone(),
@@ -85,7 +98,8 @@ impl Prims {
     #[inline]
     pub fn intersect_prim(&self, prim: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
         if prim < self.sphere_base {
-            let (t, u, v) = self.tris[prim as usize].intersect(ray, t_max)?;
+            let i = prim as usize;
+            let (t, u, v) = self.tris[i].intersect(ray, t_max, &self.corners[i])?;
             Some(Hit { t, u, v, prim })
         } else if prim < self.box_base {
             let t = prims::intersect_sphere(

@@ -105,7 +105,8 @@ impl Prims {
         t_max: Vf,
     ) -> LaneHits {
         if prim < self.sphere_base {
-            self.tris[prim as usize].intersect_packet(rays, active, t_max)
+            let i = prim as usize;
+            self.tris[i].intersect_packet(rays, active, t_max, &self.corners[i])
         } else if prim < self.box_base {
             let s = &self.spheres[(prim - self.sphere_base) as usize];
             intersect_sphere_packet(s, rays, active, t_max)

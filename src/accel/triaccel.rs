@@ -1,4 +1,5 @@
-//! Wald's precomputed triangle test ("TriAccel", Wald 2004, PhD thesis, section 7.1).
+//! Wald's precomputed triangle test ("TriAccel", Wald 2004, PhD thesis, section 7.1),
+//! made watertight.
 //!
 //! Each triangle is stored as its plane and two edge equations, all projected onto the
 //! coordinate plane where the triangle is largest (dropping axis `k`). The test then
@@ -6,13 +7,90 @@
 //!
 //! The packet twin lives in [`crate::accel::triaccel_packet`] and performs the same
 //! operations in the same order, so both return bit-identical `t`, `u`, `v`.
+//!
+//! Watertightness. As published, the test lets rays slip between triangles that share
+//! an edge: each triangle computes its own hit point from its own rounded plane (its own
+//! `t`) and its own projection, so two neighbours can both place a ray just outside
+//! themselves. Measured on this machine with `tests/watertight.rs` before this rule: 3 of
+//! 1,048,576 random interior rays escaped a closed oblique 132K-triangle grid, and 6.9%
+//! of rays aimed exactly at its shared edges and vertices (8.6% on a tessellated sphere,
+//! 0.33% on an axis-aligned box with rounded coordinates). The error is not a property
+//! of the triangle alone: to first order (`eps = 2^-24`, `beta` the size of the edge
+//! coefficients, `|d|` the direction's largest component, `denom` the test's
+//! denominator)
+//!
+//! ```text
+//! |u - u_exact| <= eps * beta * (mag + |o| + |t| |d|) * (c1 |d| / |denom| + c2)
+//! ```
+//!
+//! It grows with the ray origin's magnitude and without limit for grazing rays, so a
+//! fixed per-triangle slack folded into `b_d`/`c_d` (the cheapest candidate: no extra
+//! instruction) cannot close every crack; a slack wide enough for typical rays (about
+//! 1e-4 of the triangle on the 132K grid) still leaks grazing ones and fattens every
+//! silhouette. An exact rule for every test (Woop, Benthin & Wald 2013) needs the
+//! corners and a per-lane permutation of axes in the packet test, about three times the
+//! arithmetic.
+//!
+//! So the test is a hybrid. A lane whose `t` lies outside `(t_min, t_max)` by more than
+//! it can differ from the exact rule's `t` ([`T_SLACK`]) leaves at once, as in Wald's
+//! test. Otherwise the fast TriAccel answer stands when the smallest of `u`,
+//! `v`, `w = 1 - u - v` is farther from zero than the bound above (with `c1 = 128`,
+//! `c2 = 64`: four times the first-order constants of TriAccel's own rounding plus the
+//! exact rule's). Then the exact rule of [`crate::accel::watertight`] gives the same
+//! answer, so every answer is the exact rule's answer, which is watertight. Only rays
+//! within the bound of an edge (rare: the bound is a few ulps of the coordinates, seen
+//! through the triangle's size) run the exact rule on the triangle's corners; both paths
+//! call the same scalar function, so they stay bit-identical. The bound's per-triangle
+//! factors fill the record's two spare words (`err = eps * beta` and `mag`, the largest
+//! corner coordinate, raised to cover the rounding of the stored coefficients, measured
+//! in f64 at build time), so the record stays 48 bytes. A hit decided by the exact rule
+//! reports that rule's `t`, `u`, `v`: for a grazing ray the plane's `t` can put the hit
+//! point well outside the triangle (and outside its kd-tree cells), the rule's cannot.
+//!
+//! The cost in Mrays/s is recorded in perf/README.md, section "Watertightness".
 
+use super::watertight;
 use crate::ray::Ray;
 use crate::scene::Geometry;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// `(k + 1) % 3` and `(k + 2) % 3` without a division: `MOD3[k + 1]`, `MOD3[k + 2]`.
 pub const MOD3: [usize; 5] = [0, 1, 2, 0, 1];
+
+/// Unit roundoff of f32.
+const EPS: f32 = f32::EPSILON * 0.5;
+
+/// Weight of the grazing term `|d| / |denom|` in the edge bound (see the module doc).
+pub const C1: f32 = 128.0;
+
+/// Weight of the constant term in the edge bound.
+pub const C2: f32 = 64.0;
+
+/// `|t - t_exact| <= T_SLACK * reach / |denom|` with `reach = mag + |o| + |t| |d|`: the
+/// first-order bound on how far TriAccel's `t` lies from the exact rule's (`28 eps`),
+/// times four. Lanes farther than this outside `(t_min, t_max)` leave at once.
+pub const T_SLACK: f32 = 1.0 / (1u32 << 17) as f32;
+
+/// `if a < b { a } else { b }`: the order of [`crate::simd::min_lt`].
+#[inline]
+pub fn min_lt(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// `if a > b { a } else { b }`: the order of [`crate::simd::max_gt`].
+#[inline]
+pub fn max_gt(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The answer of the exact edge rule for a ray within the bound of an edge: its hit
+/// (`t`, `u`, `v` from [`watertight::intersect`]) when `t_min < t < t_max`. The scalar
+/// and packet tests both call this one function.
+#[inline(never)]
+pub fn exact_rule(ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
+    let (t, u, v) = watertight::intersect(ray, corners)?;
+    (t > ray.t_min && t < t_max).then_some((t, u, v))
+}
 
 /// One precomputed triangle: 48 bytes, three 16-byte rows, laid out as in Wald's thesis
 /// so the packet test loads each row with one aligned load.
@@ -32,22 +110,24 @@ pub struct TriAccel {
     pub b_nu: f32,
     pub b_nv: f32,
     pub b_d: f32,
-    /// The triangle's id (its index in [`Geometry::triangles`]).
-    pub tri: u32,
+    /// `eps * beta`: the edge bound's scale, with `beta = |b_nu| + |b_nv| + |c_nu| +
+    /// |c_nv|` bounding the gradient of `u`, `v` and `1 - u - v` (Wald's padding word).
+    pub err: f32,
     pub c_nu: f32,
     pub c_nv: f32,
     pub c_d: f32,
-    /// Unused; keeps rows 16-byte aligned.
-    pub pad: u32,
+    /// The largest corner coordinate, raised to cover the stored coefficients' own
+    /// rounding (Wald's second padding word).
+    pub mag: f32,
 }
 
 const _: () = assert!(std::mem::size_of::<TriAccel>() == 48);
 
 impl TriAccel {
-    /// Precomputes the record of triangle `tri` with corners `a`, `b`, `c`. A degenerate
+    /// Precomputes the record of the triangle with corners `a`, `b`, `c`. A degenerate
     /// triangle gets a record that no ray hits (its edge equations are all zero with
     /// `b_d = -1`).
-    pub fn new(a: Vec3, b: Vec3, c: Vec3, tri: u32) -> TriAccel {
+    pub fn new(a: Vec3, b: Vec3, c: Vec3) -> TriAccel {
         let e1 = b - a; // toward the second vertex (weight u)
         let e2 = c - a; // toward the third vertex (weight v)
         let n = e1.cross(e2);
@@ -72,11 +152,11 @@ impl TriAccel {
                 b_nu: 0.0,
                 b_nv: 0.0,
                 b_d: -1.0,
-                tri,
+                err: 0.0,
                 c_nu: 0.0,
                 c_nv: 0.0,
                 c_d: -1.0,
-                pad: 0,
+                mag: 0.0,
             };
         }
         let n_u = n[ku] / nk;
@@ -89,7 +169,7 @@ impl TriAccel {
         let c_nu = -e1[kv] / det;
         let c_nv = e1[ku] / det;
         let c_d = -(a[ku] * c_nu + a[kv] * c_nv);
-        TriAccel {
+        let mut acc = TriAccel {
             n_u,
             n_v,
             n_d,
@@ -97,12 +177,55 @@ impl TriAccel {
             b_nu,
             b_nv,
             b_d,
-            tri,
+            err: 0.0,
             c_nu,
             c_nv,
             c_d,
-            pad: 0,
+            mag: 0.0,
+        };
+        (acc.err, acc.mag) = acc.bound_factors([a, b, c]);
+        acc
+    }
+
+    /// `err` and `mag` for corners `p` (see the module doc). The stored coefficients'
+    /// rounding is measured in f64 at the corners: `s_e`, the largest error of `u`, `v`
+    /// or `u + v`, and `r_p`, the largest distance along `k` from a corner to the stored
+    /// plane. Being affine, these errors grow at most fourfold (eightfold for the plane)
+    /// over the region where the bound decides anything, and `mag` is raised until the
+    /// bound's constant and grazing terms cover them. Rounded up, never down.
+    fn bound_factors(&self, p: [Vec3; 3]) -> (f32, f32) {
+        let k = self.k as usize;
+        let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
+        let f = |x: f32| x as f64;
+        let beta =
+            f(self.b_nu).abs() + f(self.b_nv).abs() + f(self.c_nu).abs() + f(self.c_nv).abs();
+        let mut m = 0.0f64;
+        let mut s_e = 0.0f64;
+        let mut r_p = 0.0f64;
+        for (i, q) in p.iter().enumerate() {
+            let q = DVec3::new(f(q.x), f(q.y), f(q.z));
+            m = m.max(q.abs().max_element());
+            let u = q[ku] * f(self.b_nu) + q[kv] * f(self.b_nv) + f(self.b_d);
+            let v = q[ku] * f(self.c_nu) + q[kv] * f(self.c_nv) + f(self.c_d);
+            let (u0, v0) = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)][i];
+            s_e = s_e
+                .max((u - u0).abs())
+                .max((v - v0).abs())
+                .max((u + v - u0 - v0).abs());
+            let plane = f(self.n_d) - f(self.n_u) * q[ku] - f(self.n_v) * q[kv];
+            r_p = r_p.max((q[k] - plane).abs());
         }
+        let eps = EPS as f64;
+        let err = (eps * beta * (1.0 + 1e-6)).max(f32::MIN_POSITIVE as f64);
+        let mag = m
+            .max(4.0 * s_e / (err * C2 as f64))
+            .max(8.0 * r_p / (eps * C1 as f64))
+            * (1.0 + 1e-6);
+        let up = |x: f64| {
+            let y = x as f32;
+            if (y as f64) < x { y.next_up() } else { y }
+        };
+        (up(err), up(mag))
     }
 
     /// Records for every triangle of `geometry`, in id order.
@@ -110,38 +233,51 @@ impl TriAccel {
         (0..geometry.triangles.len() as u32)
             .map(|i| {
                 let [a, b, c] = geometry.triangle(i);
-                TriAccel::new(a, b, c, i)
+                TriAccel::new(a, b, c)
             })
             .collect()
     }
 
     /// Intersects `ray` with the triangle for `t_min < t < t_max`; returns `(t, u, v)`.
+    /// `corners` are the triangle's corners, read only when the exact edge rule decides.
     ///
     /// Operation order is part of the contract: the packet test repeats it exactly.
     #[inline]
     #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
-    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<(f32, f32, f32)> {
+    pub fn intersect(&self, ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
         let k = self.k as usize;
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let (o, d) = (ray.org, ray.dir);
         let denom = d[k] + self.n_u * d[ku] + self.n_v * d[kv];
         let numer = self.n_d - o[k] - self.n_u * o[ku] - self.n_v * o[kv];
         let t = numer / denom;
-        // Written so that NaN (denominator 0) fails.
-        if !(t > ray.t_min && t < t_max) {
+        let ad = denom.abs();
+        let o_max = max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs());
+        let d_max = max_gt(max_gt(d.x.abs(), d.y.abs()), d.z.abs());
+        let reach = self.mag + o_max + t.abs() * d_max;
+        // Early out, written so that NaN fails: `t` is outside the ray's range by more
+        // than it can differ from the exact rule's `t` (`T_SLACK * reach / |denom|`).
+        let slack = reach * T_SLACK;
+        if !((t - t_max) * ad < slack && (ray.t_min - t) * ad < slack) {
             return None;
         }
         let hu = o[ku] + t * d[ku];
         let hv = o[kv] + t * d[kv];
         let u = hu * self.b_nu + hv * self.b_nv + self.b_d;
-        if !(u >= 0.0) {
-            return None;
-        }
         let v = hu * self.c_nu + hv * self.c_nv + self.c_d;
-        if !(v >= 0.0) || !(u + v <= 1.0) {
+        let w = 1.0 - u - v;
+        let bound = self.err * reach * (C1 * d_max + C2 * ad);
+        let edge = min_lt(min_lt(u, v), w) * ad;
+        // Written so that NaN (denominator 0) fails. The `t` range is checked on the
+        // `t` that is reported, so the answer does not depend on the `t_max` a caller
+        // passes beyond cutting at it (a kd-tree's answer equals brute force's).
+        if edge >= bound {
+            return (t > ray.t_min && t < t_max).then_some((t, u, v));
+        }
+        if !(edge >= -bound) {
             return None;
         }
-        Some((t, u, v))
+        exact_rule(ray, t_max, corners)
     }
 }
 
@@ -156,22 +292,24 @@ mod tests {
             Vec3::new(2.0, 0.0, 1.0),
             Vec3::new(0.0, 4.0, 1.0),
         );
-        let acc = TriAccel::new(a, b, c, 7);
+        let acc = TriAccel::new(a, b, c);
+        let corners = [a, b, c];
         let p = a * 0.5 + b * 0.25 + c * 0.25;
         let ray = Ray::new(Vec3::new(p.x, p.y, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        let (t, u, v) = acc.intersect(&ray, ray.t_max).expect("hit");
+        let (t, u, v) = acc.intersect(&ray, ray.t_max, &corners).expect("hit");
         assert!((t - 2.0).abs() < 1e-6);
         assert!((u - 0.25).abs() < 1e-6 && (v - 0.25).abs() < 1e-6);
         // Outside the u >= 0 edge, and beyond t_max.
         let miss = Ray::new(Vec3::new(-0.1, 1.0, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        assert!(acc.intersect(&miss, miss.t_max).is_none());
-        assert!(acc.intersect(&ray, 1.5).is_none());
+        assert!(acc.intersect(&miss, miss.t_max, &corners).is_none());
+        assert!(acc.intersect(&ray, 1.5, &corners).is_none());
     }
 
     #[test]
     fn degenerate_triangles_are_never_hit() {
-        let acc = TriAccel::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0, 0);
+        let corners = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        let acc = TriAccel::new(corners[0], corners[1], corners[2]);
         let ray = Ray::new(Vec3::new(0.5, 0.0, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        assert!(acc.intersect(&ray, ray.t_max).is_none());
+        assert!(acc.intersect(&ray, ray.t_max, &corners).is_none());
     }
 }

@@ -30,7 +30,13 @@
 //! actually taken, so the weights stay normalised.
 //!
 //! Secondary rays start at the hit point moved along the geometric normal by `1e-4` times
-//! the diagonal of the scene's bounds (RAYS.md), toward the side they leave to.
+//! the diagonal of the scene's bounds (RAYS.md), toward the side they leave to, or by
+//! [`RELATIVE_OFFSET`] of the largest coordinate of the hit point or of the ray that found
+//! it when that is more: a hit point is only known to a few ulps of those coordinates, so
+//! far from the origin (a ground plane seen to the horizon, a scene whose bounded part is
+//! small or absent) a fixed share of the diagonal would start shadow rays below the
+//! surface (shadow acne). Both terms scale with the scene, so a scene rendered at 1e-4
+//! or 1e4 times its size gives the same image.
 
 use super::sample::{Pcg32, sample_cone, stratified};
 use super::shade_packet::ShadowBatch;
@@ -122,6 +128,10 @@ pub fn transmission(c: Vec3, d: f32) -> Vec3 {
     Vec3::new(one(c.x), one(c.y), one(c.z))
 }
 
+/// Share of a hit's coordinate magnitude that a secondary ray's origin is offset by at
+/// least: 256 ulps of f32, well above the few ulps a hit point is off its surface.
+pub const RELATIVE_OFFSET: f32 = 1.0 / 65536.0;
+
 /// The scalar shader: a scene, an accelerator over its geometry and the ray offset.
 pub struct Shader<'a> {
     pub scene: &'a Scene,
@@ -184,7 +194,7 @@ impl<'a> Shader<'a> {
         let epsilon = if diagonal.is_finite() && diagonal > 0.0 {
             1e-4 * diagonal
         } else {
-            1e-4
+            0.0
         };
         Shader {
             scene,
@@ -243,6 +253,16 @@ impl<'a> Shader<'a> {
         (colour * transmission(at.medium, hit.t), sig)
     }
 
+    /// How far a secondary ray from hit point `p`, found by a ray from `from`, starts off
+    /// the surface: the scene's `epsilon`, or [`RELATIVE_OFFSET`] of the larger
+    /// coordinate magnitude when that is more (see the module doc). Never zero.
+    pub fn offset(&self, from: Vec3, p: Vec3) -> f32 {
+        let magnitude = from.abs().max_element().max(p.abs().max_element());
+        self.epsilon
+            .max(magnitude * RELATIVE_OFFSET)
+            .max(f32::MIN_POSITIVE)
+    }
+
     fn shade(&self, ray: &Ray, hit: &Hit, at: Bounce, path: &mut Path) -> (Vec3, HitSignature) {
         let Bounce {
             depth,
@@ -250,13 +270,14 @@ impl<'a> Shader<'a> {
             medium,
         } = at;
         let s = self.surface(ray, hit);
+        let epsilon = self.offset(ray.org, s.p);
         let m = s.material;
         let settings = &self.scene.settings;
         let mut colour = s.albedo * (settings.ambient * m.diffuse);
         let mut light_bits = 0u64;
 
         if m.diffuse > 0.0 || m.specular > 0.0 {
-            let origin = s.p + s.ng * self.epsilon;
+            let origin = s.p + s.ng * epsilon;
             let view = -ray.dir;
             for (k, light) in self.scene.lights.iter().enumerate() {
                 let count = match light {
@@ -313,7 +334,7 @@ impl<'a> Shader<'a> {
         if depth < settings.max_depth {
             if m.reflection > 0.0 {
                 let mirror = self.mirror_direction(ray.dir, &s);
-                let origin = s.p + s.ng * self.epsilon;
+                let origin = s.p + s.ng * epsilon;
                 if m.glossiness > 0.0 {
                     let count = scaled_count(settings.glossy_samples, budget);
                     let cos_max = m.glossiness.min(std::f32::consts::FRAC_PI_2).cos();
@@ -347,13 +368,13 @@ impl<'a> Shader<'a> {
                         } else {
                             absorption_coefficient(m)
                         };
-                        let r = Ray::new(s.p - s.ng * self.epsilon, dir, 0.0, f32::INFINITY);
+                        let r = Ray::new(s.p - s.ng * epsilon, dir, 0.0, f32::INFINITY);
                         self.trace(&r, at.next(0.5, beyond), path)
                     }
                     None => {
                         path.counts.reflection += 1;
                         let dir = self.mirror_direction(ray.dir, &s);
-                        let r = Ray::new(s.p + s.ng * self.epsilon, dir, 0.0, f32::INFINITY);
+                        let r = Ray::new(s.p + s.ng * epsilon, dir, 0.0, f32::INFINITY);
                         self.trace(&r, at.next(0.5, medium), path)
                     }
                 };

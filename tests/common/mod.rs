@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod closed;
+
 use glam::Vec3;
 use raypack::accel::kdtree::KdTree;
 use raypack::ray::Ray;

@@ -129,8 +129,18 @@ impl KdTree {
 }
 
 /// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`].
+/// A ray with a NaN or infinite origin or direction component, a zero direction, or
+/// `!(t_min <= t_max)` gets `None`: it misses every primitive anyway (each test fails on
+/// its NaN or infinite `t`), and must not walk the whole tree to find that out.
 #[inline]
 pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
+    let usable = ray.org.is_finite()
+        && ray.dir.is_finite()
+        && ray.dir != Vec3::ZERO
+        && ray.t_min <= ray.t_max;
+    if !usable {
+        return None;
+    }
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     for axis in 0..3 {
         let o = ray.org[axis];

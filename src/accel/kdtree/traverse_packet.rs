@@ -68,11 +68,18 @@ fn next_up(v: Vf) -> Vf {
 }
 
 /// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
-/// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it.
+/// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it
+/// (never a lane with a NaN or infinite origin or direction, a zero direction or
+/// `!(t_min <= t_max)`, as in the scalar path).
 #[inline]
 fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf) {
     let (mut t0, mut t1) = (rays.t_min, rays.t_max);
-    let mut live = active;
+    let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
+    let zero_dir = rays.dir[0].simd_eq(Vf::ZERO)
+        & rays.dir[1].simd_eq(Vf::ZERO)
+        & rays.dir[2].simd_eq(Vf::ZERO);
+    let mut live =
+        active & finite(&rays.org) & finite(&rays.dir) & !zero_dir & rays.t_min.simd_le(rays.t_max);
     for axis in 0..3 {
         let o = rays.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);

@@ -1,0 +1,190 @@
+//! Numeric edge cases: NaN, infinite and zero-length rays, empty `t` ranges, scenes at
+//! 1e-6 and 1e6 scale and far from the origin, and rays starting exactly on triangle
+//! edges, corners and split planes. Each must finish (no panic, no endless walk) with
+//! the answer documented on [`raypack::accel::Accel`], the same from the kd-tree's
+//! scalar and packet paths and from brute force.
+
+mod common;
+
+use common::closed::{leaks_packet, leaks_scalar};
+use common::{adversarial_rays, mixed_primitives, random_rays};
+use glam::Vec3;
+use raypack::accel::Accel;
+use raypack::accel::brute::BruteForce;
+use raypack::accel::kdtree::KdTree;
+use raypack::accel::packet::RayPacket;
+use raypack::ray::Ray;
+use raypack::scene::Geometry;
+use raypack::scene::generate::{self, Rng};
+
+fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
+    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+}
+
+/// Asserts that the kd-tree (scalar and packet) and brute force agree bit for bit on
+/// every ray's closest hit and occlusion; returns the number of hits.
+fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize {
+    let brute = BruteForce::new(g);
+    let mut hits = 0;
+    for (c, chunk) in rays.chunks(4).enumerate() {
+        let packet = RayPacket::from_rays(chunk);
+        let packet_hits = tree.intersect_packet(&packet);
+        let packet_occluded = tree.occluded_packet(&packet);
+        for (i, ray) in chunk.iter().enumerate() {
+            let want = brute.intersect(ray);
+            let got = tree.intersect(ray);
+            let lane = packet_hits.lane(i);
+            let from_packet = lane.is_hit().then_some(lane);
+            assert_eq!(
+                bits(got),
+                bits(want),
+                "{what}: ray {} {ray:?} kd-tree vs brute",
+                c * 4 + i
+            );
+            assert_eq!(
+                bits(from_packet),
+                bits(want),
+                "{what}: ray {} {ray:?} packet vs brute",
+                c * 4 + i
+            );
+            let occluded = brute.occluded(ray);
+            assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
+            assert_eq!(
+                packet_occluded & (1 << i) != 0,
+                occluded,
+                "{what}: ray {ray:?} packet occluded"
+            );
+            hits += want.is_some() as usize;
+        }
+    }
+    hits
+}
+
+#[test]
+fn nan_infinite_and_zero_rays_hit_nothing() {
+    let g = mixed_primitives();
+    let tree = KdTree::build(&g);
+    let brute = BruteForce::new(&g);
+    let inside = Vec3::new(0.5, 0.5, 0.5);
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    let bad = [
+        Ray::new(inside, Vec3::new(nan, 0.0, 1.0), 0.0, inf),
+        Ray::new(inside, Vec3::splat(nan), 0.0, inf),
+        Ray::new(Vec3::new(0.5, nan, 0.5), Vec3::Y, 0.0, inf),
+        Ray::new(inside, Vec3::ZERO, 0.0, inf),
+        Ray::new(inside, Vec3::new(-0.0, 0.0, -0.0), 0.0, 10.0),
+        Ray::new(inside, Vec3::new(inf, 0.0, 0.0), 0.0, inf),
+        Ray::new(Vec3::new(-inf, 0.5, 0.5), Vec3::X, 0.0, inf),
+        Ray::new(inside, Vec3::Y, nan, inf),
+        Ray::new(inside, Vec3::Y, 0.0, nan),
+        Ray::new(inside, Vec3::Y, 2.0, 1.0),
+        Ray::new(inside, Vec3::Y, inf, inf),
+    ];
+    for ray in &bad {
+        assert_eq!(brute.intersect(ray), None, "brute {ray:?}");
+        assert_eq!(tree.intersect(ray), None, "kd-tree {ray:?}");
+        assert!(
+            !brute.occluded(ray) && !tree.occluded(ray),
+            "occluded {ray:?}"
+        );
+    }
+    // In a packet, beside good lanes: the bad lane misses and the good lanes get their
+    // scalar answers.
+    let good = Ray::new(Vec3::new(0.5, 2.0, 0.5), -Vec3::Y, 0.0, inf);
+    let want = tree.intersect(&good).expect("the good ray hits");
+    for ray in &bad {
+        let packet = RayPacket::from_rays(&[good, *ray, good, *ray]);
+        let hits = tree.intersect_packet(&packet);
+        let occluded = tree.occluded_packet(&packet);
+        assert_eq!(occluded, 0b0101, "{ray:?}");
+        for i in [0, 2] {
+            assert_eq!(bits(Some(hits.lane(i))), bits(Some(want)), "{ray:?}");
+        }
+        assert!(!hits.lane(1).is_hit() && !hits.lane(3).is_hit(), "{ray:?}");
+    }
+}
+
+/// `g` scaled by `scale` about the origin and moved by `offset`.
+fn transformed(g: &Geometry, scale: f32, offset: Vec3) -> Geometry {
+    let mut g = g.clone();
+    for v in &mut g.vertices {
+        *v = *v * scale + offset;
+    }
+    g
+}
+
+#[test]
+fn tiny_huge_and_far_scenes_agree_with_brute_force_and_stay_watertight() {
+    let sphere = generate::tessellated_sphere(Vec3::new(0.2, -0.1, 0.3), 1.0, 24, 32);
+    let soup = generate::random_soup(2_000, 0.2, 5);
+    for (scale, offset) in [
+        (1e-6, Vec3::ZERO),
+        (1e6, Vec3::ZERO),
+        (1.0, Vec3::new(1e4, -2e4, 3e3)),
+        (1e-3, Vec3::new(0.0, 1e3, 0.0)),
+    ] {
+        let what = format!("scale {scale:e}, offset {offset}");
+        let closed = transformed(&sphere, scale, offset);
+        let g = generate::merge(&[closed.clone(), transformed(&soup, scale, offset)]);
+        let tree = KdTree::build(&g);
+        let b = g.bounds();
+        let mut rays = random_rays(b.min, b.max, 4_000, 7);
+        rays.extend(adversarial_rays(&tree, &g, 4_000, 8));
+        let hits = assert_agree(&g, &tree, &rays, &what);
+        assert!(hits > 2_000, "{what}: only {hits} hits");
+
+        let closed_tree = KdTree::build(&closed);
+        let mut rng = Rng::new(9);
+        let centre = Vec3::new(0.2, -0.1, 0.3) * scale + offset;
+        let interior: Vec<Ray> = (0..100_000)
+            .map(|_| {
+                let p = rng.point(Vec3::splat(-0.5), Vec3::splat(0.5)) * scale + centre;
+                Ray::new(p, rng.unit_vector(), 0.0, f32::INFINITY)
+            })
+            .collect();
+        assert_eq!(
+            leaks_scalar(&closed_tree, &interior).len(),
+            0,
+            "{what}: scalar leaks"
+        );
+        assert_eq!(
+            leaks_packet(&closed_tree, &interior).len(),
+            0,
+            "{what}: packet leaks"
+        );
+    }
+}
+
+#[test]
+fn rays_starting_on_edges_corners_and_split_planes_are_defined() {
+    for (name, g) in [
+        ("box", generate::closed_box(6)),
+        ("warped grid", generate::warped_closed_grid(12)),
+        ("grid", generate::axis_aligned_grid(4)),
+    ] {
+        let tree = KdTree::build(&g);
+        let mut rng = Rng::new(77);
+        let mut rays = Vec::new();
+        for _ in 0..3_000 {
+            let [a, b, c] = g.triangle(rng.below(g.triangles.len() as u32));
+            let org = match rng.below(4) {
+                0 => a,
+                1 => (a + b) * 0.5,
+                2 => b + (c - b) * rng.f32(),
+                _ => (a + b + c) / 3.0,
+            };
+            let mut dir = rng.unit_vector();
+            if rng.below(4) == 0 {
+                // Along an edge, or an axis with signed zeros.
+                dir = if rng.below(2) == 0 {
+                    c - a
+                } else {
+                    Vec3::new(0.0, -0.0, 1.0)
+                };
+            }
+            rays.push(Ray::new(org, dir, 0.0, f32::INFINITY));
+        }
+        rays.extend(adversarial_rays(&tree, &g, 3_000, 78));
+        assert_agree(&g, &tree, &rays, name);
+    }
+}
