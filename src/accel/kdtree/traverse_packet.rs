@@ -175,6 +175,9 @@ impl KdTree {
         // Near is the left child on axes where the group's directions are not negative.
         let negative = rays.dir.map(|d| any(lanes & d.simd_lt(Vf::ZERO)));
         let zero = rays.dir.map(|d| d.simd_eq(Vf::ZERO));
+        let any_zero = zero.map(|z| any(lanes & z));
+        let org_abs = rays.org.map(|o| o.abs());
+        let inv_abs = rays.inv_dir.map(|i| i.abs());
         let mut stack = [Entry {
             node: 0,
             lanes: Mask::ZERO,
@@ -190,9 +193,9 @@ impl KdTree {
                 let children = n.children();
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
-                let margin = (splat(n.split.abs()) + o.abs()) * splat(PLANE_SLACK);
+                let margin = (splat(n.split.abs()) + org_abs[axis]) * splat(PLANE_SLACK);
                 let t_split = (split - o) * inv;
-                let slack = margin * inv.abs();
+                let slack = margin * inv_abs[axis];
                 let lo = t_split - slack;
                 let hi = t_split + slack;
                 let (near, far) = if negative[axis] {
@@ -200,18 +203,24 @@ impl KdTree {
                 } else {
                     (children, children + 1)
                 };
-                // Lanes parallel to the plane keep their interval and go to the sides
-                // within `margin` of their origin.
-                let z = zero[axis];
-                let left_only = (o + margin).simd_lt(split);
-                let right_only = (o - margin).simd_gt(split);
-                let (near_only_z, far_only_z) = if negative[axis] {
-                    (right_only, left_only)
+                let (near_only, far_only) = if any_zero[axis] {
+                    // Lanes parallel to the plane keep their interval and go to the
+                    // sides within `margin` of their origin.
+                    let z = zero[axis];
+                    let left_only = (o + margin).simd_lt(split);
+                    let right_only = (o - margin).simd_gt(split);
+                    let (near_z, far_z) = if negative[axis] {
+                        (right_only, left_only)
+                    } else {
+                        (left_only, right_only)
+                    };
+                    (
+                        select(z, near_z, lo.simd_gt(t_far)),
+                        select(z, far_z, hi.simd_lt(t_near)),
+                    )
                 } else {
-                    (left_only, right_only)
+                    (lo.simd_gt(t_far), hi.simd_lt(t_near))
                 };
-                let near_only = select(z, near_only_z, lo.simd_gt(t_far));
-                let far_only = select(z, far_only_z, hi.simd_lt(t_near));
                 // As in the scalar path, near-only wins when both tests pass.
                 let near_lanes = lanes & !(far_only & !near_only);
                 let far_lanes = lanes & !near_only;
@@ -225,13 +234,13 @@ impl KdTree {
                     stack[depth] = Entry {
                         node: far,
                         lanes: far_lanes,
-                        t_near: select(z, t_near, t_near.max(lo)),
+                        t_near: select(zero[axis], t_near, t_near.max(lo)),
                         t_far,
                     };
                     depth += 1;
                     node = near;
                     lanes = near_lanes;
-                    t_far = select(z, t_far, t_far.min(hi));
+                    t_far = select(zero[axis], t_far, t_far.min(hi));
                 }
                 continue;
             }
