@@ -247,3 +247,30 @@ fn bunny_camera_rays_match_brute_force() {
 fn cornell_box_camera_rays_match_brute_force() {
     check_shared_scene("cornell_box", 13);
 }
+
+#[test]
+fn every_shipped_scene_matches_brute_force() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut paths: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|e| e.expect("directory entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    paths.sort();
+    assert!(
+        paths.len() >= 7,
+        "expected the tutorial scenes in {}",
+        dir.display()
+    );
+    for (i, path) in paths.iter().enumerate() {
+        let scene =
+            raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        check_scene(
+            &scene.geometry,
+            &scene.camera,
+            100 + i as u64,
+            1_000,
+            &path.display().to_string(),
+        );
+    }
+}

@@ -89,7 +89,7 @@ fn event(pos: f32, kind: u64, prim: u32) -> u64 {
     ((order_bits(pos + 0.0) as u64) << 32) | (kind << 30) | prim as u64
 }
 
-#[inline]
+#[cfg(test)]
 fn event_pos(e: u64) -> f32 {
     from_order_bits((e >> 32) as u32)
 }
@@ -268,7 +268,7 @@ impl KdTree {
             max_depth_limit: max_depth,
         };
         KdTree {
-            nodes: out.nodes,
+            nodes: out.nodes.into(),
             leaves: out.leaves,
             prim_indices: out.prim_indices,
             prims,
@@ -352,52 +352,42 @@ impl Builder<'_> {
             let perimeter = e[u] + e[v];
             let (lo, hi) = (cell.min[axis], cell.max[axis]);
             let (mut n_left, mut n_right) = (0u32, n);
-            let mut i = 0;
-            while i < events.len() {
-                let key = events[i] >> 32;
-                let group_start = i;
-                while i < events.len() && events[i] >> 32 == key && event_kind(events[i]) == END {
-                    i += 1;
-                }
-                let ends = (i - group_start) as u32;
-                let planar_start = i;
-                while i < events.len() && events[i] >> 32 == key && event_kind(events[i]) == PLANAR
-                {
-                    i += 1;
-                }
-                let planars = (i - planar_start) as u32;
-                let start_start = i;
-                while i < events.len() && events[i] >> 32 == key {
-                    i += 1;
-                }
-                let starts = (i - start_start) as u32;
-                n_right -= planars + ends;
+            // This position's planar events, and its planar and start events that join
+            // the left side once the plane through it has been priced.
+            let (mut planars, mut pending) = (0u32, 0u32);
+            for (i, &ev) in events.iter().enumerate() {
+                let kind = event_kind(ev);
+                n_right -= (kind != START) as u32;
+                planars += (kind == PLANAR) as u32;
+                pending += (kind != END) as u32;
+                let key = ev >> 32;
+                // Shared vertices make equal positions common and unpredictable, so the
+                // plane is priced at every event (branch-free) and kept only at the
+                // last event of its position.
+                let last = events.get(i + 1).is_none_or(|&next| next >> 32 != key);
                 let pos = from_order_bits(key as u32);
-                if pos > lo && pos < hi {
-                    let p_left = (cap + (pos - lo) * perimeter) * inv_area;
-                    let p_right = (cap + (hi - pos) * perimeter) * inv_area;
-                    let cost = |nl: u32, nr: u32| {
-                        let c = k_t + k_i * (p_left * nl as f32 + p_right * nr as f32);
-                        if nl == 0 || nr == 0 { c * bonus } else { c }
-                    };
-                    let with_left = cost(n_left + planars, n_right);
-                    let with_right = cost(n_left, n_right + planars);
-                    let (c, planar_left) = if with_left < with_right {
-                        (with_left, true)
-                    } else {
-                        (with_right, false)
-                    };
-                    if c < best_cost {
-                        best_cost = c;
-                        best = Some(Split {
-                            axis,
-                            pos,
-                            planar_left,
-                            cost: c,
-                        });
-                    }
+                let p_left = (cap + (pos - lo) * perimeter) * inv_area;
+                let p_right = (cap + (hi - pos) * perimeter) * inv_area;
+                let cost = |nl: u32, nr: u32| {
+                    let c = k_t + k_i * (p_left * nl as f32 + p_right * nr as f32);
+                    if nl == 0 || nr == 0 { c * bonus } else { c }
+                };
+                let with_left = cost(n_left + planars, n_right);
+                let with_right = cost(n_left, n_right + planars);
+                let planar_left = with_left < with_right;
+                let c = if planar_left { with_left } else { with_right };
+                if c < best_cost && last && pos > lo && pos < hi {
+                    best_cost = c;
+                    best = Some(Split {
+                        axis,
+                        pos,
+                        planar_left,
+                        cost: c,
+                    });
                 }
-                n_left += starts + planars;
+                n_left += pending * last as u32;
+                pending *= !last as u32;
+                planars *= !last as u32;
             }
         }
         best
@@ -412,23 +402,20 @@ impl Builder<'_> {
         for &e in axis_events {
             scratch[event_prim(e) as usize] = BOTH;
         }
-        let mut n_left = 0;
-        let mut n_right = 0;
+        // An end at or before the plane makes a primitive left, a start at or after it
+        // right, a planar event either; the masks keep BOTH (0b11) otherwise. Keys
+        // compare like positions.
+        let key = order_bits(pos) as u64;
+        let (mut n_left, mut n_right) = (0, 0);
         for &e in axis_events {
-            let p = event_pos(e);
-            let side = match event_kind(e) {
-                END if p <= pos => LEFT,
-                START if p >= pos => RIGHT,
-                PLANAR if p < pos || (p == pos && split.planar_left) => LEFT,
-                PLANAR => RIGHT,
-                _ => continue,
-            };
-            scratch[event_prim(e) as usize] = side;
-            if side == LEFT {
-                n_left += 1;
-            } else {
-                n_right += 1;
-            }
+            let (kind, at) = (event_kind(e), e >> 32);
+            let planar = kind == PLANAR;
+            let left = (kind == END && at <= key)
+                | (planar && (at < key || (at == key && split.planar_left)));
+            let right = (kind == START && at >= key) | (planar && !left);
+            scratch[event_prim(e) as usize] &= BOTH ^ ((left as u8) << 1) ^ (right as u8);
+            n_left += left as u32;
+            n_right += right as u32;
         }
         let mut left_cell = task.cell;
         left_cell.max[axis] = pos;
@@ -450,17 +437,26 @@ impl Builder<'_> {
                 n_right += 1;
             }
         }
-        let child = |cell: Aabb, side: u8, new: &mut [Vec<u64>; 3], count: u32| Task {
-            cell,
-            events: std::array::from_fn(|a| {
-                new[a].sort_unstable();
-                merge_side(&task.events[a], scratch, side, &new[a])
-            }),
-            prim_count: count,
+        let mut left_events: [Vec<u64>; 3] = Default::default();
+        let mut right_events: [Vec<u64>; 3] = Default::default();
+        for (a, src) in task.events.into_iter().enumerate() {
+            left_new[a].sort_unstable();
+            right_new[a].sort_unstable();
+            (left_events[a], right_events[a]) =
+                split_events(&src, scratch, &left_new[a], &right_new[a]);
+        }
+        let left = Task {
+            cell: left_cell,
+            events: left_events,
+            prim_count: n_left,
             depth: task.depth + 1,
         };
-        let left = child(left_cell, LEFT, &mut left_new, n_left);
-        let right = child(right_cell, RIGHT, &mut right_new, n_right);
+        let right = Task {
+            cell: right_cell,
+            events: right_events,
+            prim_count: n_right,
+            depth: task.depth + 1,
+        };
         (left, right)
     }
 
@@ -485,22 +481,47 @@ impl Builder<'_> {
     }
 }
 
-/// The events of `src` whose primitive is on `side`, merged with the sorted `extra`.
-fn merge_side(src: &[u64], scratch: &[u8], side: u8, extra: &[u64]) -> Vec<u64> {
-    let mut out = Vec::with_capacity(src.len() + extra.len());
-    let mut j = 0;
+/// The events of `src` whose primitives went left and right (straddlers dropped), each
+/// list merged with the sorted new events of its side.
+fn split_events(
+    src: &[u64],
+    scratch: &[u8],
+    left_new: &[u64],
+    right_new: &[u64],
+) -> (Vec<u64>, Vec<u64>) {
+    let mut left = Vec::with_capacity(src.len() + left_new.len());
+    let mut right = Vec::with_capacity(src.len() + right_new.len());
     for &e in src {
-        if scratch[event_prim(e) as usize] != side {
-            continue;
+        match scratch[event_prim(e) as usize] {
+            LEFT => left.push(e),
+            RIGHT => right.push(e),
+            _ => {}
         }
-        while j < extra.len() && extra[j] < e {
-            out.push(extra[j]);
-            j += 1;
-        }
-        out.push(e);
     }
-    out.extend_from_slice(&extra[j..]);
-    out
+    let (n_left, n_right) = (left.len(), right.len());
+    left.resize(n_left + left_new.len(), 0);
+    right.resize(n_right + right_new.len(), 0);
+    merge_back(&mut left, n_left, left_new);
+    merge_back(&mut right, n_right, right_new);
+    (left, right)
+}
+
+/// Merges sorted `extra` into the sorted `buf[..n]` in place, from the back, and cuts
+/// `buf` to the merged length (`buf` has room for both).
+fn merge_back(buf: &mut Vec<u64>, n: usize, extra: &[u64]) {
+    let (mut i, mut j) = (n, extra.len());
+    let mut k = n + extra.len();
+    while j > 0 {
+        k -= 1;
+        if i > 0 && buf[i - 1] > extra[j - 1] {
+            buf[k] = buf[i - 1];
+            i -= 1;
+        } else {
+            buf[k] = extra[j - 1];
+            j -= 1;
+        }
+    }
+    buf.truncate(n + extra.len());
 }
 
 fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
@@ -515,83 +536,96 @@ const CLIP_VERTICES: usize = 16;
 
 /// Bounds of the part of triangle `tri` inside `cell`, or `None` when they do not meet.
 ///
-/// Akenine-Moller's test (on the cell widened by [`CLIP_SLACK`]) decides overlap; then
-/// the triangle is clipped to the cell (Sutherland-Hodgman). Corners of the triangle
-/// count exactly; points that clipping computed are widened by a few ulps on the axes
-/// clipping did not fix, and the result is intersected with the cell.
+/// The triangle is clipped to the cell (Sutherland-Hodgman); when nothing is left,
+/// Akenine-Moller's exact overlap test (on the cell widened by [`CLIP_SLACK`]) has the
+/// last word, so rounding in the clipper never drops a triangle that touches the cell.
+/// Corners of the triangle count exactly; points that clipping computed are widened by
+/// a few ulps, and the result is intersected with the cell.
 pub fn clip_triangle(tri: [Vec3; 3], cell: &Aabb) -> Option<Aabb> {
-    let centre = (cell.min + cell.max) * 0.5;
-    let half = (cell.max - cell.min) * 0.5;
-    let slack = (centre.abs() + half) * CLIP_SLACK;
-    if !tri_box_overlap(centre, half + slack, tri) {
-        return None;
+    let mut whole = Aabb::EMPTY;
+    tri.iter().for_each(|&p| whole.grow(p));
+    if whole.min.cmpge(cell.min).all() && whole.max.cmple(cell.max).all() {
+        return Some(whole);
     }
-    let whole = {
-        let mut b = Aabb::EMPTY;
-        tri.iter().for_each(|&p| b.grow(p));
-        b
+    // When clipping leaves nothing (or, in theory, rounding makes the polygon
+    // non-convex), the overlap test decides; if it finds a sliver that rounding lost,
+    // the plain bounds in the cell are the safe answer.
+    let fallback = || {
+        let centre = (cell.min + cell.max) * 0.5;
+        let half = (cell.max - cell.min) * 0.5;
+        let slack = (centre.abs() + half) * CLIP_SLACK;
+        if tri_box_overlap(centre, half + slack, tri) {
+            Some(intersect_boxes(&whole, cell)).filter(|b| !b.is_empty())
+        } else {
+            None
+        }
     };
-    // Rounding can lose a sliver that the overlap test kept, or (in theory) make the
-    // polygon non-convex; the plain bounds in the cell are then the safe answer.
-    let fallback = Some(intersect_boxes(&whole, cell)).filter(|b| !b.is_empty());
-    // Each vertex carries a flag: true when it is one of the triangle's own corners.
-    let mut poly = [(Vec3::ZERO, true); CLIP_VERTICES];
-    let mut len = 3;
-    for (slot, &p) in poly.iter_mut().zip(&tri) {
-        *slot = (p, true);
+    let (lo, hi) = (cell.min.to_array(), cell.max.to_array());
+    // Ping-pong polygons; each corner carries a flag: true for the triangle's own.
+    let mut bufs = [[([0.0f32; 3], true); CLIP_VERTICES]; 2];
+    for (slot, p) in bufs[0].iter_mut().zip(tri) {
+        *slot = (p.to_array(), true);
     }
-    let mut next = [(Vec3::ZERO, true); CLIP_VERTICES];
+    let (mut cur, mut len) = (0, 3);
     for axis in 0..3 {
-        for (plane, keep_below) in [(cell.min[axis], false), (cell.max[axis], true)] {
-            let inside = |p: Vec3| {
+        for (plane, keep_below) in [(lo[axis], false), (hi[axis], true)] {
+            let inside = |p: &[f32; 3]| {
                 if keep_below {
                     p[axis] <= plane
                 } else {
                     p[axis] >= plane
                 }
             };
-            if poly[..len].iter().all(|&(p, _)| inside(p)) {
+            let [a_buf, b_buf] = &mut bufs;
+            let (poly, next) = if cur == 0 {
+                (&*a_buf, b_buf)
+            } else {
+                (&*b_buf, a_buf)
+            };
+            if poly[..len].iter().all(|(p, _)| inside(p)) {
                 continue;
             }
             let mut n = 0;
             for i in 0..len {
                 let (a, a_exact) = poly[i];
-                let (b, _) = poly[(i + 1) % len];
-                let (a_in, b_in) = (inside(a), inside(b));
+                let (b, _) = poly[if i + 1 == len { 0 } else { i + 1 }];
+                let (a_in, b_in) = (inside(&a), inside(&b));
                 if a_in {
                     if n == CLIP_VERTICES {
-                        return fallback;
+                        return fallback();
                     }
                     next[n] = (a, a_exact);
                     n += 1;
                 }
                 if a_in != b_in {
                     if n == CLIP_VERTICES {
-                        return fallback;
+                        return fallback();
                     }
                     let t = (plane - a[axis]) / (b[axis] - a[axis]);
-                    let mut p = a + (b - a) * t;
+                    let mut p = [0.0; 3];
+                    for k in 0..3 {
+                        p[k] = a[k] + (b[k] - a[k]) * t;
+                    }
                     p[axis] = plane;
                     next[n] = (p, false);
                     n += 1;
                 }
             }
-            poly = next;
+            cur ^= 1;
             len = n;
             if len == 0 {
-                break;
+                return fallback();
             }
         }
     }
-    if len == 0 {
-        return fallback;
-    }
+    let scale = whole.min.abs().max(whole.max.abs());
     let mut b = Aabb::EMPTY;
-    for &(p, exact) in &poly[..len] {
+    for &(p, exact) in &bufs[cur][..len] {
+        let p = Vec3::from_array(p);
         if exact {
             b.grow(p);
         } else {
-            let widen = p.abs().max(whole.min.abs().max(whole.max.abs())) * CLIP_SLACK;
+            let widen = p.abs().max(scale) * CLIP_SLACK;
             b.grow(p - widen);
             b.grow(p + widen);
         }

@@ -17,11 +17,11 @@ pub mod traverse_packet;
 use super::Prims;
 use crate::scene::Aabb;
 pub use build::{BuildParams, BuildStats};
-use node::KdNode;
+use node::{AlignedNodes, KdNode};
 
 pub struct KdTree {
-    /// Root is `nodes[0]`.
-    pub(crate) nodes: Vec<KdNode>,
+    /// Root is `nodes[0]`; the array starts on a 64-byte boundary.
+    pub(crate) nodes: AlignedNodes,
     /// `[first, count]` into `prim_indices`, one per leaf.
     pub(crate) leaves: Vec<[u32; 2]>,
     pub(crate) prim_indices: Vec<u32>,
@@ -83,7 +83,7 @@ impl KdTree {
             build: self.build_stats.clone(),
             nodes: self.nodes.len() as u32,
             leaves: self.leaves.len() as u32,
-            node_bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            node_bytes: std::mem::size_of_val(&self.nodes[..]),
             leaf_bytes: std::mem::size_of_val(self.leaves.as_slice()),
             index_bytes: std::mem::size_of_val(self.prim_indices.as_slice()),
             triaccel_bytes: std::mem::size_of_val(self.prims.tris.as_slice()),

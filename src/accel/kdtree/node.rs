@@ -66,6 +66,53 @@ impl KdNode {
     }
 }
 
+/// Eight nodes: one 64-byte cache line.
+#[repr(C, align(64))]
+#[derive(Clone, Copy)]
+struct NodeBlock([KdNode; 8]);
+
+const _: () = assert!(std::mem::size_of::<NodeBlock>() == 64);
+
+/// The node array, starting on a 64-byte boundary so a child pair (8-byte aligned,
+/// 16 bytes) never straddles two cache lines. Reads as `&[KdNode]`.
+#[derive(Clone)]
+pub struct AlignedNodes {
+    blocks: Vec<NodeBlock>,
+    len: usize,
+}
+
+impl From<Vec<KdNode>> for AlignedNodes {
+    fn from(nodes: Vec<KdNode>) -> AlignedNodes {
+        let pad = KdNode::leaf(0);
+        let blocks = nodes
+            .chunks(8)
+            .map(|c| NodeBlock(std::array::from_fn(|i| c.get(i).copied().unwrap_or(pad))))
+            .collect();
+        AlignedNodes {
+            blocks,
+            len: nodes.len(),
+        }
+    }
+}
+
+impl std::ops::Deref for AlignedNodes {
+    type Target = [KdNode];
+
+    fn deref(&self) -> &[KdNode] {
+        // SAFETY: `NodeBlock` is `repr(C)` holding exactly `[KdNode; 8]` (the const
+        // assert above proves there is no padding), so `blocks` is `8 * blocks.len()`
+        // initialized, contiguous `KdNode`s; `From` keeps `len <= 8 * blocks.len()`, and
+        // the slice borrows `self`, so the memory lives and stays unmodified.
+        unsafe { std::slice::from_raw_parts(self.blocks.as_ptr().cast::<KdNode>(), self.len) }
+    }
+}
+
+impl std::fmt::Debug for AlignedNodes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -76,5 +123,15 @@ mod tests {
         assert!(!n.is_leaf() && n.axis() == 2 && n.children() == MAX_INDEX && n.split == 1.5);
         let l = KdNode::leaf(12345);
         assert!(l.is_leaf() && l.leaf_index() == 12345);
+    }
+
+    #[test]
+    fn aligned_nodes_read_back_in_order_from_a_cache_line_boundary() {
+        for count in [0, 1, 7, 8, 9, 17] {
+            let nodes: Vec<KdNode> = (0..count).map(|i| KdNode::inner(1, i as f32, i)).collect();
+            let aligned = AlignedNodes::from(nodes.clone());
+            assert_eq!(&aligned[..], &nodes[..]);
+            assert_eq!(aligned.as_ptr() as usize % 64, 0);
+        }
     }
 }
