@@ -20,17 +20,17 @@
 //!
 //! `tobj` neither reports line numbers nor rejects every malformed file (a zero index
 //! silently drops a texture coordinate; `Kd` with two numbers panics), so a line scan of
-//! our own runs first. It checks every line `tobj` reads, so errors name the file and
-//! line, and it records the file-order triangles, against which `tobj`'s output is
-//! checked corner by corner. The MTL library is read by that scan alone. Every pass is
-//! streaming and linear in the file size.
+//! our own reads the file first. It checks every line `tobj` reads, so errors name the
+//! file and line, and it records the file-order triangles, against which `tobj`'s output
+//! is checked corner by corner. The MTL library is read by that scan alone. Every pass
+//! is streaming and linear in the file size.
 
 use super::error::ObjError;
 use super::{Camera, Geometry, Light, Material, RenderSettings, Scene};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{BufRead, BufReader, Cursor, Read};
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// A triangle mesh loaded from an OBJ file (see the module invariants).
@@ -113,8 +113,7 @@ pub fn load(path: &Path) -> Result<ObjMesh, ObjError> {
         path: path.to_path_buf(),
         source,
     };
-    let file = File::open(path).map_err(io_err)?;
-    let scan = scan_obj(path, BufReader::new(file))?;
+    let scan = scan_obj(path, BufReader::new(File::open(path).map_err(io_err)?))?;
     if scan.tri_pos.is_empty() {
         return Err(ObjError::Empty {
             path: path.to_path_buf(),
@@ -168,23 +167,12 @@ pub fn load(path: &Path) -> Result<ObjMesh, ObjError> {
         ignore_lines: true,
     };
     let no_mtl = |_: &Path| Ok((Vec::new(), Default::default()));
-    let loaded = if scan.has_polylines {
-        // tobj reads `l` lines of three or more points as faces; hide them.
-        let mut text = Vec::new();
-        File::open(path)
-            .map_err(io_err)?
-            .read_to_end(&mut text)
-            .map_err(io_err)?;
-        let kept = strip_polylines(&text);
-        tobj::load_obj_buf(&mut Cursor::new(kept), &options, no_mtl)
-    } else {
-        let mut reader = BufReader::new(File::open(path).map_err(io_err)?);
-        tobj::load_obj_buf(&mut reader, &options, no_mtl)
-    };
-    let (models, _) = loaded.map_err(|source| ObjError::Parse {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let mut reader = WithoutPolylines::new(BufReader::new(File::open(path).map_err(io_err)?));
+    let (models, _) =
+        tobj::load_obj_buf(&mut reader, &options, no_mtl).map_err(|source| ObjError::Parse {
+            path: path.to_path_buf(),
+            source,
+        })?;
     assemble(path, &scan, models, materials, tri_material)
 }
 
@@ -412,18 +400,56 @@ pub fn part7_knot_obj() -> String {
     torus_knot_obj(2, 3, 96, 8, [1.6, 0.6, 0.35])
 }
 
-/// A copy of an OBJ file without its `l` (polyline) lines.
-fn strip_polylines(text: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(text.len());
-    for line in text.split_inclusive(|&b| b == b'\n') {
-        let first = line
-            .split(|b| b.is_ascii_whitespace())
-            .find(|w| !w.is_empty());
-        if first != Some(b"l".as_slice()) {
-            out.extend_from_slice(line);
+/// An OBJ file without its `l` (polyline) lines, for `tobj`, which reads a polyline of
+/// three or more points as a face. Streams line by line.
+struct WithoutPolylines<R> {
+    inner: R,
+    line: Vec<u8>,
+    pos: usize,
+}
+
+impl<R: BufRead> WithoutPolylines<R> {
+    fn new(inner: R) -> Self {
+        WithoutPolylines {
+            inner,
+            line: Vec::new(),
+            pos: 0,
         }
     }
-    out
+}
+
+impl<R: BufRead> Read for WithoutPolylines<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        let available = self.fill_buf()?;
+        let n = available.len().min(out.len());
+        out[..n].copy_from_slice(&available[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for WithoutPolylines<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        while self.pos == self.line.len() {
+            self.line.clear();
+            self.pos = 0;
+            if self.inner.read_until(b'\n', &mut self.line)? == 0 {
+                break;
+            }
+            // Split as tobj splits (Unicode whitespace); other bytes pass unchanged.
+            let first = std::str::from_utf8(&self.line)
+                .ok()
+                .and_then(|l| l.split_whitespace().next());
+            if first == Some("l") {
+                self.line.clear();
+            }
+        }
+        Ok(&self.line[self.pos..])
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.pos = (self.pos + n).min(self.line.len());
+    }
 }
 
 /// `tri_usemtl` value of a triangle before any `usemtl`.
@@ -443,7 +469,6 @@ struct Scan {
     corner_count: u64,
     corner_vt_count: u64,
     corner_vn_count: u64,
-    has_polylines: bool,
 }
 
 /// The line scan: checks every statement `tobj` interprets and records triangles.
@@ -559,7 +584,6 @@ fn scan_obj(path: &Path, mut reader: impl BufRead) -> Result<Scan, ObjError> {
                 }
                 normal_count += 1;
             }
-            "l" => scan.has_polylines = true,
             "f" => {
                 face.clear();
                 let counts = [scan.positions.len(), texcoord_count, normal_count];
