@@ -50,6 +50,15 @@ impl RayPacket {
         }
     }
 
+    /// Packs the rays of the `Some` lanes; `None` lanes are inactive.
+    pub fn from_lanes(rays: &[Option<Ray>; LANES]) -> RayPacket {
+        let fill = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0);
+        let mut p = RayPacket::from_rays(&rays.map(|r| r.unwrap_or(fill)));
+        let live = (0..LANES).filter(|&i| rays[i].is_some());
+        p.active = mask_from_bits(live.fold(0, |m, i| m | (1 << i)));
+        p
+    }
+
     /// The camera rays of the 2x2 pixel quad whose top-left pixel is `(x, y)`, in
     /// RAYS.md's lane order: `(x, y)`, `(x + 1, y)`, `(x, y + 1)`, `(x + 1, y + 1)`.
     pub fn camera_quad(frame: &CameraFrame, x: u32, y: u32) -> [Ray; LANES] {

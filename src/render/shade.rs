@@ -33,6 +33,7 @@
 //! the diagonal of the scene's bounds (RAYS.md), toward the side they leave to.
 
 use super::sample::{Pcg32, sample_cone, stratified};
+use super::shade_packet::ShadowBatch;
 use crate::accel::Accel;
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{Light, Material, PrimRef, Scene, Sphere};
@@ -127,6 +128,9 @@ pub struct Shader<'a> {
     pub accel: &'a dyn Accel,
     /// Offset of secondary ray origins from the surface.
     pub epsilon: f32,
+    /// Test the shadow rays of an area light's samples as packets
+    /// ([`super::shade_packet::ShadowBatch`]); the answers, and so the image, are the same.
+    pub packets: bool,
 }
 
 /// The mutable state of one camera sample's ray tree.
@@ -186,6 +190,7 @@ impl<'a> Shader<'a> {
             scene,
             accel,
             epsilon,
+            packets: false,
         }
     }
 
@@ -259,6 +264,17 @@ impl<'a> Shader<'a> {
                     Light::Area { samples, .. } => scaled_count(*samples, budget),
                 };
                 let (mut diffuse, mut specular, mut visible) = (0.0f32, 0.0f32, 0u32);
+                let mut lit = |shadow: &Ray, n_dot_l: f32| {
+                    visible += 1;
+                    diffuse += n_dot_l;
+                    if m.specular > 0.0 {
+                        let r_dot_v = reflect(-shadow.dir, s.ns).dot(view);
+                        if r_dot_v > 0.0 {
+                            specular += r_dot_v.powf(m.shininess);
+                        }
+                    }
+                };
+                let mut batch = ShadowBatch::new(self.packets);
                 for i in 0..count {
                     let target = match light {
                         Light::Point { position, .. } => *position,
@@ -279,18 +295,9 @@ impl<'a> Shader<'a> {
                     }
                     path.counts.shadow += 1;
                     let shadow = Ray::new(origin, l, 0.0, dist * (1.0 - 1e-5));
-                    if self.accel.occluded(&shadow) {
-                        continue;
-                    }
-                    visible += 1;
-                    diffuse += n_dot_l;
-                    if m.specular > 0.0 {
-                        let r_dot_v = reflect(-l, s.ns).dot(view);
-                        if r_dot_v > 0.0 {
-                            specular += r_dot_v.powf(m.shininess);
-                        }
-                    }
+                    batch.push(self.accel, shadow, n_dot_l, &mut lit);
                 }
+                batch.flush(self.accel, &mut lit);
                 let inv = 1.0 / count as f32;
                 colour += light.color()
                     * (s.albedo * (m.diffuse * diffuse * inv)

@@ -14,6 +14,7 @@
 use super::film::Film;
 use super::sample::pixel_rng;
 use super::shade::{HitSignature, RayCounts, Shader};
+use super::shade_packet::shade_quad_packet;
 use crate::accel::Accel;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
 use crate::simd::LANES;
@@ -29,6 +30,9 @@ pub enum Mode {
     /// One ray at a time through [`Shader`]: the reference.
     #[default]
     Scalar,
+    /// Camera quads as 4-ray packets and area-light shadow rays in packets
+    /// ([`super::shade_packet`]); the same image as `Scalar`, bit for bit.
+    Packet,
 }
 
 /// A rectangle of pixels; edge tiles may be smaller than [`TILE`].
@@ -73,7 +77,10 @@ pub fn render(
 ) -> Rendered {
     let (width, height) = (scene.settings.width, scene.settings.height);
     let ctx = TileContext {
-        shader: Shader::new(scene, accel),
+        shader: Shader {
+            packets: mode == Mode::Packet,
+            ..Shader::new(scene, accel)
+        },
         frame: scene.camera.frame(width, height),
         seed: scene.settings.seed,
         mode,
@@ -115,6 +122,7 @@ pub fn shade_quad(
             Some((x, y)) => centre_sample(shader, frame, seed, x, y, counts),
             None => (Vec3::ZERO, HitSignature::MISS),
         }),
+        Mode::Packet => shade_quad_packet(shader, frame, seed, pixels, counts),
     }
 }
 
