@@ -28,6 +28,17 @@ impl Ray {
         }
     }
 
+    /// Whether any primitive can be hit: finite origin and direction, a non-zero
+    /// direction and `t_min <= t_max`. Every intersector answers "no hit" for other rays
+    /// (see [`crate::accel::Accel`]) without testing a primitive.
+    #[inline]
+    pub fn is_usable(&self) -> bool {
+        self.org.is_finite()
+            && self.dir.is_finite()
+            && self.dir != Vec3::ZERO
+            && self.t_min <= self.t_max
+    }
+
     /// The point at distance `t`.
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {

@@ -25,6 +25,9 @@ impl Accel for BruteForce {
     }
 
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if !ray.is_usable() {
+            return None;
+        }
         let mut best = Hit::MISS;
         for prim in 0..self.prims.plane_base {
             if let Some(h) = self.prims.intersect_prim(prim, ray, ray.t_max)
@@ -38,7 +41,9 @@ impl Accel for BruteForce {
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        (0..self.prims.plane_base).any(|p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
+        ray.is_usable()
+            && (0..self.prims.plane_base)
+                .any(|p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
             || self.prims.planes_occlude(ray)
     }
 }

@@ -134,11 +134,7 @@ impl KdTree {
 /// its NaN or infinite `t`), and must not walk the whole tree to find that out.
 #[inline]
 pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
-    let usable = ray.org.is_finite()
-        && ray.dir.is_finite()
-        && ray.dir != Vec3::ZERO
-        && ray.t_min <= ray.t_max;
-    if !usable {
+    if !ray.is_usable() {
         return None;
     }
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
