@@ -72,7 +72,10 @@ pub fn parse_with_warnings(path: &Path, text: &str) -> Result<(Scene, Vec<Warnin
     let doc = Doc::new(path, text);
     let root = DeTable::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
-        line: e.span().map_or(0, |s| doc.line(s.start)),
+        line: match e.span() {
+            Some(s) => doc.line(s.start),
+            None => doc.first_failing_line(text, e.message()),
+        },
         message: e.message().trim().to_string(),
     })?;
     let root = Section {
@@ -134,6 +137,25 @@ impl<'a> Doc<'a> {
     /// 1-based line of byte `offset`.
     fn line(&self, offset: usize) -> usize {
         self.line_starts.partition_point(|&s| s <= offset).max(1)
+    }
+
+    /// The line of a TOML error reported without a position (the parser's recursion
+    /// limit on deeply nested dotted keys): the first line whose prefix of the file fails
+    /// with the same `message`, found by bisection (`O(n log n)`, on the error path only).
+    fn first_failing_line(&self, text: &str, message: &str) -> usize {
+        let fails = |lines: usize| {
+            let end = self.line_starts.get(lines).map_or(text.len(), |&e| e);
+            DeTable::parse(&text[..end]).is_err_and(|e| e.message() == message)
+        };
+        let (mut lo, mut hi) = (1, self.line_starts.len());
+        if !fails(hi) {
+            return 0;
+        }
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if fails(mid) { hi = mid } else { lo = mid + 1 }
+        }
+        lo
     }
 
     fn invalid(&self, span: &Range<usize>, key: String, message: impl Into<String>) -> SceneError {
