@@ -244,8 +244,8 @@ impl KdTree {
                 }
                 continue;
             }
-            let [first, count] = self.leaves[n.leaf_index() as usize];
-            let prims = &self.prim_indices[first as usize..(first + count) as usize];
+            let first = n.leaf_first() as usize;
+            let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
             if ANY_HIT {
                 let mut live = lanes;
                 for &p in prims {
