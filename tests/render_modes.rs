@@ -257,7 +257,7 @@ samples = 16
     };
     assert_eq!(c.packets.primary, primary, "{c:?}");
     let g = c.packets.glossy;
-    assert!(c.glossy > 0 && c.glossy % 6 == 0, "{c:?}");
+    assert!(c.glossy > 0 && c.glossy.is_multiple_of(6), "{c:?}");
     assert_eq!(g.packets, c.glossy / 6 * 2, "{c:?}");
     assert_eq!((g.packet_rays, g.single_rays), (c.glossy, 0), "{c:?}");
     let sh = c.packets.shadow;
