@@ -778,3 +778,120 @@ scene_case!(
     25,
     ["textures.t4", "texels in all"]
 );
+scene_case!(
+    vfov_180,
+    "vfov_180.toml",
+    SceneError::Invalid { .. },
+    4,
+    ["camera.vfov", "< 180 degrees"]
+);
+scene_case!(
+    up_zero,
+    "up_zero.toml",
+    SceneError::Invalid { .. },
+    4,
+    ["camera.up", "is zero"]
+);
+scene_case!(
+    antialias_n_too_large,
+    "antialias_n_too_large.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["render.antialias_n", "1 to 16"]
+);
+scene_case!(texture_is_a_folder, "texture_is_folder.toml",
+    SceneError::Texture { ref source, .. }
+        if matches!(**source, TextureError::Io { .. } | TextureError::Decode { .. }),
+    7, ["textures.wood.file", "texture"]);
+scene_case!(mtl_texture_corrupt_names_the_texture, "mesh_corrupt_texture.toml",
+    SceneError::Texture { ref source, .. } if matches!(**source, TextureError::Decode { .. }),
+    6, ["meshes[0].file", "truncated.png: cannot decode texture"]);
+
+/// The CLI's whole message for `args`: exit code 2, one line `raypack: ` followed by the
+/// library's error chain, no panic, no image.
+fn cli_rejects(args: &[&std::ffi::OsStr], want: &str) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_raypack"))
+        .args(args)
+        .output()
+        .expect("raypack runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    assert_eq!(stderr, format!("raypack: {want}\n"), "{args:?}");
+}
+
+/// Every scene file of the corpus through `raypack render` and every OBJ file through
+/// `raypack info`: exit code 2 and exactly the library's message (which the cases above
+/// pin down to file, line and key).
+#[test]
+fn cli_exits_2_with_the_library_message_for_the_whole_corpus() {
+    let out_png = std::env::temp_dir().join(format!("raypack-corpus-{}.png", std::process::id()));
+    let mut count = 0;
+    for kind in ["scene", "obj"] {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(data(kind))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml" || e == "obj"))
+            .filter(|p| (kind == "scene") == p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        files.sort();
+        for path in files {
+            let (want, args) = if kind == "scene" {
+                let e = file::load(&path).expect_err("a malformed scene loads");
+                let args = vec![
+                    "render".as_ref(),
+                    path.as_os_str(),
+                    "-o".as_ref(),
+                    out_png.as_os_str(),
+                ];
+                (chain(&e), args)
+            } else {
+                let e = obj::load(&path).expect_err("a malformed mesh loads");
+                (chain(&e), vec!["info".as_ref(), path.as_os_str()])
+            };
+            cli_rejects(&args, &want);
+            assert!(
+                !out_png.exists(),
+                "{}: an image was written",
+                path.display()
+            );
+            count += 1;
+        }
+    }
+    assert!(count > 60, "only {count} corpus files");
+}
+
+/// Every file of tests/data/bad has a case in this file that pins its error down, or is
+/// used by another corpus file (an MTL library, a texture of a mesh).
+#[test]
+fn every_corpus_file_has_a_case() {
+    let kinds = ["scene", "obj", "texture"];
+    let mut files = Vec::new();
+    for kind in kinds {
+        for e in std::fs::read_dir(data(kind)).unwrap() {
+            let path = e.unwrap().path();
+            let text = String::from_utf8_lossy(&std::fs::read(&path).unwrap()).into_owned();
+            files.push((
+                kind,
+                path.file_name().unwrap().to_str().unwrap().to_string(),
+                text,
+            ));
+        }
+    }
+    let source = include_str!("bad_input.rs");
+    for (kind, name, _) in &files {
+        let in_case = source.contains(&format!("\"{name}\""))
+            || source.contains(&format!("{name}:"))
+            || source.contains(&format!("/{name}\""));
+        let used = files
+            .iter()
+            .any(|(_, other, text)| other != name && text.contains(name.as_str()));
+        assert!(in_case || used, "tests/data/bad/{kind}/{name} has no case");
+    }
+}
+scene_case!(
+    deep_dotted_key_names_its_line,
+    "deep_dotted_key.toml",
+    SceneError::Syntax { .. },
+    8,
+    ["recursion limit"]
+);

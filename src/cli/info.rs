@@ -37,6 +37,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = scenes::load(&args.scene)?;
+    super::warn(&scene.warnings);
     let geometry = &scene.geometry;
     let threads = if args.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())

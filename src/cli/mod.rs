@@ -60,7 +60,15 @@ pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchSce
         scene.geometry.planes.len(),
         scene.load_seconds
     );
+    warn(&scene.warnings);
     Ok(scene)
+}
+
+/// Prints each loader warning once on stderr.
+pub fn warn(warnings: &[raypack::scene::Warning]) {
+    for w in warnings {
+        eprintln!("raypack: warning: {w}");
+    }
 }
 
 /// 2 when the error was caused by bad input, 1 otherwise.

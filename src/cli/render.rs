@@ -64,7 +64,8 @@ impl From<ModeArg> for Mode {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut scene = raypack::scene::file::load(&args.scene)?;
+    let (mut scene, warnings) = raypack::scene::file::load_with_warnings(&args.scene)?;
+    super::warn(&warnings);
     apply_overrides(&mut scene, &args)?;
     let threads = match args.threads {
         Some(0) => return Err(BadInput("--threads must be at least 1".into()).into()),

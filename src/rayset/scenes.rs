@@ -13,7 +13,7 @@
 
 use super::View;
 use crate::scene::spd::{self, SpdError};
-use crate::scene::{Geometry, ObjError, SceneError};
+use crate::scene::{Geometry, ObjError, SceneError, Warning};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -57,6 +57,8 @@ pub struct BenchScene {
     pub view: View,
     /// Seconds spent reading or generating the geometry.
     pub load_seconds: f64,
+    /// What the user should be warned about (degenerate triangles of its meshes).
+    pub warnings: Vec<Warning>,
 }
 
 /// One entry of cameras.toml.
@@ -148,21 +150,24 @@ pub fn overview(geometry: &Geometry) -> View {
     }
 }
 
-/// Reads an OBJ mesh's geometry (triangle ids in file order, as RAYS.md numbers them).
-fn load_obj(path: &Path) -> Result<Geometry, BenchSceneError> {
+/// Reads an OBJ mesh's geometry (triangle ids in file order, as RAYS.md numbers them)
+/// and its warning.
+fn load_obj(path: &Path) -> Result<(Geometry, Vec<Warning>), BenchSceneError> {
     let mesh = crate::scene::obj::load(path)?;
-    Ok(Geometry {
+    let warnings = mesh.warning(path).into_iter().collect();
+    let geometry = Geometry {
         vertices: mesh.positions,
         triangles: mesh.triangles,
         ..Geometry::default()
-    })
+    };
+    Ok((geometry, warnings))
 }
 
-/// Reads a TOML scene's geometry and camera.
-fn load_toml(path: &Path) -> Result<(Geometry, View), BenchSceneError> {
-    let scene = crate::scene::file::load(path)?;
+/// Reads a TOML scene's geometry, camera and warnings.
+fn load_toml(path: &Path) -> Result<(Geometry, View, Vec<Warning>), BenchSceneError> {
+    let (scene, warnings) = crate::scene::file::load_with_warnings(path)?;
     let view = View::from(&scene.camera);
-    Ok((scene.geometry, view))
+    Ok((scene.geometry, view, warnings))
 }
 
 /// The camera of an OBJ file that is one of the shared scenes, if it is one.
@@ -184,13 +189,13 @@ pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let (geometry, view) = if let Some(spec) = arg.strip_prefix("spd:") {
+    let (geometry, view, warnings) = if let Some(spec) = arg.strip_prefix("spd:") {
         let s = spd::generate_spec(spec)?;
-        (s.geometry, s.view)
+        (s.geometry, s.view, Vec::new())
     } else if ext.as_deref() == Some("obj") {
-        let g = load_obj(path)?;
+        let (g, warnings) = load_obj(path)?;
         let view = shared_view_of(path).unwrap_or_else(|| overview(&g));
-        (g, view)
+        (g, view, warnings)
     } else if ext.as_deref() == Some("toml") {
         load_toml(path)?
     } else if path.is_file() {
@@ -200,12 +205,14 @@ pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
         });
     } else {
         let (entry, obj) = shared_scene(arg)?;
-        (load_obj(&obj)?, entry.view())
+        let (g, warnings) = load_obj(&obj)?;
+        (g, entry.view(), warnings)
     };
     Ok(BenchScene {
         name: arg.to_string(),
         geometry,
         view,
         load_seconds: start.elapsed().as_secs_f64(),
+        warnings,
     })
 }

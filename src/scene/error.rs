@@ -178,3 +178,25 @@ pub enum TextureError {
         max: u32,
     },
 }
+
+/// Something in user data that raypack accepts but the user should hear about. Loaders
+/// return these beside what they built; the CLI prints each once on stderr.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Warning {
+    /// Zero-area triangles of an OBJ file: they keep their prim ids but no ray hits
+    /// them, and the kd-tree leaves them out.
+    DegenerateTriangles { path: PathBuf, count: u32 },
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::DegenerateTriangles { path, count } => write!(
+                f,
+                "{}: {count} degenerate (zero-area) triangle{} skipped",
+                path.display(),
+                if *count == 1 { "" } else { "s" }
+            ),
+        }
+    }
+}

@@ -12,7 +12,7 @@
 //! Primitive ids of the scene follow `Geometry`: the triangles of all `[[meshes]]` in
 //! file order (each mesh's in OBJ order), then `[[spheres]]`, `[[boxes]]`, `[[planes]]`.
 
-use super::error::{SceneError, TextureError};
+use super::error::{SceneError, TextureError, Warning};
 use super::obj::{self, ObjMesh};
 use super::texture::{self, Procedural};
 use super::{
@@ -39,12 +39,18 @@ pub const MAX_TEXELS: u64 = 1 << 26;
 
 /// Reads and checks the scene file at `path`.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with_warnings(path).map(|(scene, _)| scene)
+}
+
+/// [`load`], also returning what the user should be warned about (degenerate triangles
+/// of its meshes, one warning per mesh file).
+pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<Warning>), SceneError> {
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
     match std::str::from_utf8(&bytes) {
-        Ok(text) => parse(path, text),
+        Ok(text) => parse_with_warnings(path, text),
         Err(e) => {
             let before = &bytes[..e.valid_up_to()];
             Err(SceneError::Syntax {
@@ -58,10 +64,18 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// Builds a scene from the TOML `text` of the file at `path`.
 pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
+    parse_with_warnings(path, text).map(|(scene, _)| scene)
+}
+
+/// [`parse`], also returning the warnings of [`load_with_warnings`].
+pub fn parse_with_warnings(path: &Path, text: &str) -> Result<(Scene, Vec<Warning>), SceneError> {
     let doc = Doc::new(path, text);
     let root = DeTable::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
-        line: e.span().map_or(0, |s| doc.line(s.start)),
+        line: match e.span() {
+            Some(s) => doc.line(s.start),
+            None => doc.first_failing_line(text, e.message()),
+        },
         message: e.message().trim().to_string(),
     })?;
     let root = Section {
@@ -123,6 +137,25 @@ impl<'a> Doc<'a> {
     /// 1-based line of byte `offset`.
     fn line(&self, offset: usize) -> usize {
         self.line_starts.partition_point(|&s| s <= offset).max(1)
+    }
+
+    /// The line of a TOML error reported without a position (the parser's recursion
+    /// limit on deeply nested dotted keys): the first line whose prefix of the file fails
+    /// with the same `message`, found by bisection (`O(n log n)`, on the error path only).
+    fn first_failing_line(&self, text: &str, message: &str) -> usize {
+        let fails = |lines: usize| {
+            let end = self.line_starts.get(lines).map_or(text.len(), |&e| e);
+            DeTable::parse(&text[..end]).is_err_and(|e| e.message() == message)
+        };
+        let (mut lo, mut hi) = (1, self.line_starts.len());
+        if !fails(hi) {
+            return 0;
+        }
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if fails(mid) { hi = mid } else { lo = mid + 1 }
+        }
+        lo
     }
 
     fn invalid(&self, span: &Range<usize>, key: String, message: impl Into<String>) -> SceneError {
@@ -365,7 +398,7 @@ impl<'a> Doc<'a> {
         Ok((self.dir.join(name), v.span()))
     }
 
-    fn build(&self, root: &Section) -> Result<Scene, SceneError> {
+    fn build(&self, root: &Section) -> Result<(Scene, Vec<Warning>), SceneError> {
         self.check_keys(
             root,
             &[
@@ -423,6 +456,7 @@ impl<'a> Doc<'a> {
             sphere_materials: Vec::new(),
             box_materials: Vec::new(),
             plane_materials: Vec::new(),
+            warnings: Vec::new(),
         };
         for m in self.tables(root, "meshes")? {
             self.mesh(&m, &mut b)?;
@@ -934,6 +968,7 @@ impl<'a> Doc<'a> {
             Some(m) => m,
             None => b.default_material(),
         };
+        b.warnings.extend(mesh.warning(&file));
         b.add_mesh(mesh, scale, translate, &materials, fallback);
         if b.scene.geometry.triangles.len() as u64 >= u32::MAX as u64 / 2 {
             return Err(self.invalid(&span, s.key("file"), "too many triangles in the scene"));
@@ -961,6 +996,7 @@ struct Builder {
     sphere_materials: Vec<u32>,
     box_materials: Vec<u32>,
     plane_materials: Vec<u32>,
+    warnings: Vec<Warning>,
 }
 
 impl Builder {
@@ -1024,7 +1060,7 @@ impl Builder {
         );
     }
 
-    fn finish(mut self, doc: &Doc, root: &Section) -> Result<Scene, SceneError> {
+    fn finish(mut self, doc: &Doc, root: &Section) -> Result<(Scene, Vec<Warning>), SceneError> {
         let g = &self.scene.geometry;
         if g.prim_count() == 0 {
             return Err(doc.invalid(&root.span, "spheres".into(), "the scene has no primitives (add [[spheres]], [[planes]], [[boxes]] or [[meshes]])"));
@@ -1034,7 +1070,7 @@ impl Builder {
         prim_material.extend_from_slice(&self.box_materials);
         prim_material.extend_from_slice(&self.plane_materials);
         self.scene.prim_material = prim_material;
-        Ok(self.scene)
+        Ok((self.scene, self.warnings))
     }
 }
 

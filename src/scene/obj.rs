@@ -25,7 +25,7 @@
 //! is checked corner by corner. The MTL library is read by that scan alone. Every pass
 //! is streaming and linear in the file size.
 
-use super::error::ObjError;
+use super::error::{ObjError, Warning};
 use super::{Camera, Geometry, Light, Material, RenderSettings, Scene};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -70,6 +70,15 @@ impl ObjMesh {
     /// Number of triangles, i.e. of prim ids.
     pub fn triangle_count(&self) -> u32 {
         self.triangles.len() as u32
+    }
+
+    /// The warning to give about the mesh loaded from `path`, if any: its degenerate
+    /// triangles are skipped by every intersector, which the user should know.
+    pub fn warning(&self, path: &Path) -> Option<Warning> {
+        (self.degenerate_count > 0).then(|| Warning::DegenerateTriangles {
+            path: path.to_path_buf(),
+            count: self.degenerate_count,
+        })
     }
 }
 
