@@ -625,8 +625,9 @@ fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
 /// Relative widening of coordinates that clipping computed (a few ulps of f32).
 const CLIP_SLACK: f32 = 1e-6;
 
-/// Room for a triangle clipped by seven planes (3 + 7 corners), and for rounding.
-const CLIP_VERTICES: usize = 16;
+/// Room for a triangle clipped by seven planes (3 + 7 corners); a polygon that rounding
+/// made more ragged than that takes the exact overlap test's answer instead.
+const CLIP_VERTICES: usize = 10;
 
 /// A convex polygon being clipped (Sutherland-Hodgman): its corners, and a bit per
 /// corner set when the corner is one of the triangle's own rather than computed.
@@ -660,12 +661,14 @@ impl Polygon {
                 p[axis] >= plane
             }
         };
-        let corners = &self.corners[..self.len];
-        let mut is_in = [false; CLIP_VERTICES];
-        for (flag, p) in is_in.iter_mut().zip(corners) {
-            *flag = inside(p);
+        let len = self.len;
+        let corners = &self.corners[..len];
+        // Bit i: corner i is on the kept side.
+        let mut kept = 0u32;
+        for (i, p) in corners.iter().enumerate() {
+            kept |= (inside(p) as u32) << i;
         }
-        if is_in[..self.len].iter().all(|&f| f) {
+        if kept == (1 << len) - 1 {
             return Some(*self);
         }
         let mut out = Polygon {
@@ -675,13 +678,14 @@ impl Polygon {
         };
         let mut n = 0;
         for (i, a) in corners.iter().enumerate() {
-            let j = if i + 1 == self.len { 0 } else { i + 1 };
-            if is_in[i] {
+            let j = if i + 1 == len { 0 } else { i + 1 };
+            let (a_in, b_in) = (kept >> i & 1, kept >> j & 1);
+            if a_in == 1 {
                 *out.corners.get_mut(n)? = *a;
                 out.exact |= (self.exact >> i & 1) << n;
                 n += 1;
             }
-            if is_in[i] != is_in[j] {
+            if a_in != b_in {
                 let b = &corners[j];
                 let t = (plane - a[axis]) / (b[axis] - a[axis]);
                 let mut p = [0.0; 3];
