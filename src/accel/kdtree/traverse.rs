@@ -26,8 +26,10 @@ use crate::accel::Accel;
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use glam::Vec3;
+use std::mem::MaybeUninit;
 
-/// Stack entries: one per level at most.
+/// Stack entries: one per level at most (a push happens at most once per level on the
+/// way down, and [`MAX_DEPTH`] bounds the levels).
 const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
@@ -51,8 +53,7 @@ impl KdTree {
             return false;
         };
         let axes = RayAxes::new(ray, inv_dir);
-        let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
-        let mut depth = 0;
+        let mut stack = Stack::<(u32, f32, f32)>::new();
         let mut node = 0u32;
         loop {
             let n = self.nodes[node as usize];
@@ -69,8 +70,7 @@ impl KdTree {
                     } else if o - margin > n.split {
                         node = children + 1;
                     } else {
-                        stack[depth] = (children + 1, t_near, t_far);
-                        depth += 1;
+                        stack.push((children + 1, t_near, t_far));
                         node = children;
                     }
                     continue;
@@ -84,8 +84,7 @@ impl KdTree {
                 } else if t_split + slack < t_near {
                     node = far;
                 } else {
-                    stack[depth] = (far, t_near.max(t_split - slack), t_far);
-                    depth += 1;
+                    stack.push((far, t_near.max(t_split - slack), t_far));
                     node = near;
                     t_far = t_far.min(t_split + slack);
                 }
@@ -114,11 +113,9 @@ impl KdTree {
                 }
             }
             loop {
-                if depth == 0 {
+                let Some((next, entry, exit)) = stack.pop() else {
                     return false;
-                }
-                depth -= 1;
-                let (next, entry, exit) = stack[depth];
+                };
                 if !ANY_HIT && entry > best.t {
                     continue;
                 }
@@ -126,6 +123,40 @@ impl KdTree {
                 break;
             }
         }
+    }
+}
+
+/// A traversal stack of [`STACK_SIZE`] `Copy` entries whose free slots stay
+/// uninitialized: zeroing the whole array on every call (64 packet entries are 4 KiB)
+/// cost more than the pushes of a typical coherent packet.
+pub(super) struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK_SIZE],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline]
+    pub(super) fn new() -> Stack<T> {
+        Stack {
+            items: [const { MaybeUninit::uninit() }; STACK_SIZE],
+            len: 0,
+        }
+    }
+
+    /// Panics when full (the tree's depth bounds the pushes, see [`STACK_SIZE`]).
+    #[inline]
+    pub(super) fn push(&mut self, item: T) {
+        self.items[self.len].write(item);
+        self.len += 1;
+    }
+
+    #[inline]
+    pub(super) fn pop(&mut self) -> Option<T> {
+        self.len = self.len.checked_sub(1)?;
+        // SAFETY: `push` is the only writer and raises `len` only after writing slot
+        // `len`; `pop` only lowers it. So every slot below the old `len`, this one
+        // included, holds an initialized item (`T: Copy`, so reading it twice is fine).
+        Some(unsafe { self.items[self.len].assume_init() })
     }
 }
 
