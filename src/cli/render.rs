@@ -170,6 +170,7 @@ fn summary(
          render     {render_seconds:.3} s\n\
          rays       {} total: {} primary, {} shadow, {} reflection, {} refraction, {} glossy\n\
          rays/s     {:.2} M\n\
+         {}\
          wrote      {}\n",
         scene_path.display(),
         s.width,
@@ -182,6 +183,31 @@ fn summary(
         c.refraction,
         c.glossy,
         rays_per_second / 1e6,
+        packet_summary(c),
         output.display(),
     )
+}
+
+/// In packet mode, how many rays of each kind were traced in packets and how many alone.
+fn packet_summary(c: &RayCounts) -> String {
+    let p = &c.packets;
+    if *p == Default::default() {
+        return String::new();
+    }
+    let kinds = [
+        ("primary", &p.primary),
+        ("shadow", &p.shadow),
+        ("secondary", &p.secondary),
+        ("glossy", &p.glossy),
+    ];
+    let parts: Vec<String> = kinds
+        .iter()
+        .map(|(name, b)| {
+            format!(
+                "{name} {} in {} packets + {} single",
+                b.packet_rays, b.packets, b.single_rays
+            )
+        })
+        .collect();
+    format!("packets    {}\n", parts.join(", "))
 }

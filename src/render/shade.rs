@@ -10,7 +10,8 @@
 //!   tutorial shared one averaged shadow factor and lit highlights from behind. Lights
 //!   have no distance falloff, as in the tutorial.
 //! - mirror reflection `reflection * albedo * trace(R)`, or, with `glossiness > 0`, the
-//!   average of rays in a cone of half-angle `glossiness` radians around `R`;
+//!   average of rays in a cone of half-angle `glossiness` radians around `R`, all of
+//!   whose directions are drawn before the first is traced;
 //! - refraction `refraction * trace(T)` with Snell's law; inside or outside is read from
 //!   the side the ray hit (the geometric normal against the ray); past the critical angle
 //!   the transmitted share is totally internally reflected instead.
@@ -22,6 +23,12 @@
 //! A ray entering a refractive surface is inside that material until its next hit; rays
 //! reflected inside stay inside; rays leaving go back to clear air. A ray inside an
 //! absorbing medium that escapes to infinity is fully absorbed.
+//!
+//! Random numbers are drawn in one fixed order per camera sample: area-light positions
+//! light by light, then all glossy directions, then the glossy rays' trees in sample
+//! order, then the mirror ray's tree, then the refraction ray's. Tracing draws nothing,
+//! which is what lets the packet path ([`super::shade_packet`]) trace rays together and
+//! still draw the same numbers.
 //!
 //! Importance sampling (part 6): each ray carries a sample budget, 1 for primary rays,
 //! halved by mirror and refraction bounces and quartered by glossy ones. An area light
@@ -43,6 +50,7 @@ use super::shade_packet::ShadowBatch;
 use crate::accel::Accel;
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{Light, Material, PrimRef, Scene, Sphere};
+use crate::simd::LANES;
 use glam::{Vec2, Vec3};
 use std::ops::AddAssign;
 
@@ -55,6 +63,60 @@ pub struct RayCounts {
     pub reflection: u64,
     pub refraction: u64,
     pub glossy: u64,
+    /// How the packet path traced these rays; all zero in scalar mode. Not part of
+    /// [`RayCounts::total`]: the same rays, counted by how they were traced.
+    pub packets: PacketCounts,
+}
+
+/// Rays of one kind traced in packets or, where no packet formed, one by one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Batching {
+    /// Packets traced.
+    pub packets: u64,
+    /// Active lanes of those packets.
+    pub packet_rays: u64,
+    /// Rays traced alone because too few rays of their kind were ready together.
+    pub single_rays: u64,
+}
+
+impl Batching {
+    /// Counts one packet of `lanes` active rays.
+    pub fn packet(&mut self, lanes: usize) {
+        self.packets += 1;
+        self.packet_rays += lanes as u64;
+    }
+}
+
+impl AddAssign for Batching {
+    fn add_assign(&mut self, o: Batching) {
+        self.packets += o.packets;
+        self.packet_rays += o.packet_rays;
+        self.single_rays += o.single_rays;
+    }
+}
+
+/// [`Batching`] by ray kind, in packet mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PacketCounts {
+    /// Camera rays: pixel quads and supersampling's sub-pixel samples.
+    pub primary: Batching,
+    /// Shadow rays toward the samples of one light from one hit point.
+    pub shadow: Batching,
+    /// Mirror and refraction rays (totally internally reflected ones included) spawned
+    /// by the lanes of packets. Those below a glossy ray are shaded one hit at a time by
+    /// the scalar steps (the glossy rays share one generator) and are not counted here.
+    pub secondary: Batching,
+    /// Glossy rays of one hit point.
+    pub glossy: Batching,
+}
+
+impl AddAssign for PacketCounts {
+    fn add_assign(&mut self, o: PacketCounts) {
+        self.primary += o.primary;
+        self.shadow += o.shadow;
+        self.secondary += o.secondary;
+        self.glossy += o.glossy;
+    }
 }
 
 impl RayCounts {
@@ -70,6 +132,7 @@ impl AddAssign for RayCounts {
         self.reflection += o.reflection;
         self.refraction += o.refraction;
         self.glossy += o.glossy;
+        self.packets += o.packets;
     }
 }
 
@@ -144,22 +207,22 @@ pub struct Shader<'a> {
 }
 
 /// The mutable state of one camera sample's ray tree.
-struct Path<'p> {
-    rng: &'p mut Pcg32,
-    counts: &'p mut RayCounts,
+pub(super) struct Path<'p> {
+    pub(super) rng: &'p mut Pcg32,
+    pub(super) counts: &'p mut RayCounts,
 }
 
 /// Where a ray sits in its tree: recursion depth (1 for camera rays), sample budget (1
 /// for camera rays) and the absorption coefficient of the medium it travels through.
 #[derive(Clone, Copy, Debug)]
-struct Bounce {
+pub(super) struct Bounce {
     depth: u32,
     budget: f32,
-    medium: Vec3,
+    pub(super) medium: Vec3,
 }
 
 impl Bounce {
-    const CAMERA: Bounce = Bounce {
+    pub(super) const CAMERA: Bounce = Bounce {
         depth: 1,
         budget: 1.0,
         medium: Vec3::ZERO,
@@ -173,6 +236,41 @@ impl Bounce {
             medium,
         }
     }
+}
+
+/// A hit point after its direct lighting: what its secondary rays start from.
+pub(super) struct Lit<'m> {
+    s: Surface<'m>,
+    /// Offset of the secondary rays' origins from the surface ([`Shader::offset`]).
+    epsilon: f32,
+    /// The colour so far; each secondary ray adds its weighted colour.
+    pub(super) colour: Vec3,
+    light_bits: u64,
+}
+
+impl Lit<'_> {
+    /// The hit's signature, given what its first mirror or refraction ray hit.
+    pub(super) fn signature(&self, hit: &Hit, secondary: u32) -> HitSignature {
+        HitSignature {
+            prim: hit.prim,
+            lights: self.light_bits,
+            secondary,
+        }
+    }
+}
+
+/// A mirror or refraction ray, where it sits in the tree and the weight its colour
+/// adds to the hit that spawned it with.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Spawn {
+    pub(super) ray: Ray,
+    pub(super) at: Bounce,
+    pub(super) weight: Vec3,
+}
+
+/// Glossy materials reflect in a cone instead of along the mirror direction.
+fn is_glossy(m: &Material) -> bool {
+    m.glossiness > 0.0
 }
 
 /// Where a ray hit, prepared for shading.
@@ -235,7 +333,7 @@ impl<'a> Shader<'a> {
     }
 
     /// Shades `ray`'s closest hit `hit` and applies the absorption along the way to it.
-    fn finish(
+    pub(super) fn finish(
         &self,
         ray: &Ray,
         hit: Option<Hit>,
@@ -243,14 +341,15 @@ impl<'a> Shader<'a> {
         path: &mut Path,
     ) -> (Vec3, HitSignature) {
         let Some(hit) = hit else {
-            let background = self.scene.settings.background;
-            return (
-                background * transmission(at.medium, f32::INFINITY),
-                HitSignature::MISS,
-            );
+            return (self.background(at), HitSignature::MISS);
         };
         let (colour, sig) = self.shade(ray, &hit, at, path);
         (colour * transmission(at.medium, hit.t), sig)
+    }
+
+    /// What a ray that leaves the scene sees: the background, through its medium.
+    pub(super) fn background(&self, at: Bounce) -> Vec3 {
+        self.scene.settings.background * transmission(at.medium, f32::INFINITY)
     }
 
     /// How far a secondary ray from hit point `p`, found by a ray from `from`, starts off
@@ -263,12 +362,32 @@ impl<'a> Shader<'a> {
             .max(f32::MIN_POSITIVE)
     }
 
+    /// Direct light, then glossy or mirror reflection, then refraction, each bounce's
+    /// ray tree traced to the end before the next draws from the generator.
     fn shade(&self, ray: &Ray, hit: &Hit, at: Bounce, path: &mut Path) -> (Vec3, HitSignature) {
-        let Bounce {
-            depth,
-            budget,
-            medium,
-        } = at;
+        let mut lit = self.direct(ray, hit, at, path);
+        if let Some(c) = self.glossy(ray, &lit, at, path) {
+            lit.colour += c;
+        }
+        let mut secondary = NO_HIT;
+        if let Some(mirror) = self.mirror(ray, &lit, at, path.counts) {
+            let (c, seen) = self.trace(&mirror.ray, mirror.at, path);
+            lit.colour += mirror.weight * c;
+            secondary = seen.prim;
+        }
+        if let Some(refraction) = self.refraction(ray, &lit, at, path.counts) {
+            let (c, seen) = self.trace(&refraction.ray, refraction.at, path);
+            lit.colour += refraction.weight * c;
+            if secondary == NO_HIT {
+                secondary = seen.prim;
+            }
+        }
+        (lit.colour, lit.signature(hit, secondary))
+    }
+
+    /// The ambient term and every light's samples at `hit`: the colour before any
+    /// secondary ray. Draws the area lights' sample positions from the generator.
+    pub(super) fn direct(&self, ray: &Ray, hit: &Hit, at: Bounce, path: &mut Path) -> Lit<'a> {
         let s = self.surface(ray, hit);
         let epsilon = self.offset(ray.org, s.p);
         let m = s.material;
@@ -282,7 +401,7 @@ impl<'a> Shader<'a> {
             for (k, light) in self.scene.lights.iter().enumerate() {
                 let count = match light {
                     Light::Point { .. } => 1,
-                    Light::Area { samples, .. } => scaled_count(*samples, budget),
+                    Light::Area { samples, .. } => scaled_count(*samples, at.budget),
                 };
                 let (mut diffuse, mut specular, mut visible) = (0.0f32, 0.0f32, 0u32);
                 let mut lit = |shadow: &Ray, n_dot_l: f32| {
@@ -316,9 +435,9 @@ impl<'a> Shader<'a> {
                     }
                     path.counts.shadow += 1;
                     let shadow = Ray::new(origin, l, 0.0, dist * (1.0 - 1e-5));
-                    batch.push(self.accel, shadow, n_dot_l, &mut lit);
+                    batch.push(self.accel, shadow, n_dot_l, &mut lit, path.counts);
                 }
-                batch.flush(self.accel, &mut lit);
+                batch.flush(self.accel, &mut lit, path.counts);
                 let inv = 1.0 / count as f32;
                 colour += light.color()
                     * (s.albedo * (m.diffuse * diffuse * inv)
@@ -329,68 +448,111 @@ impl<'a> Shader<'a> {
                 }
             }
         }
+        Lit {
+            s,
+            epsilon,
+            colour,
+            light_bits,
+        }
+    }
 
-        let mut secondary = NO_HIT;
-        if depth < settings.max_depth {
-            if m.reflection > 0.0 {
-                let mirror = self.mirror_direction(ray.dir, &s);
-                let origin = s.p + s.ng * epsilon;
-                if m.glossiness > 0.0 {
-                    let count = scaled_count(settings.glossy_samples, budget);
-                    let cos_max = m.glossiness.min(std::f32::consts::FRAC_PI_2).cos();
-                    let mut sum = Vec3::ZERO;
-                    for i in 0..count {
-                        let (r1, r2) = stratified(i, path.rng.next_f32(), path.rng.next_f32());
-                        let mut dir = sample_cone(mirror, cos_max, r1, r2);
-                        if dir.dot(s.ng) <= 0.0 {
-                            dir = reflect(dir, s.ng);
-                        }
-                        path.counts.glossy += 1;
-                        let r = Ray::new(origin, dir, 0.0, f32::INFINITY);
-                        sum += self.trace(&r, at.next(0.25, medium), path).0;
-                    }
-                    colour += s.albedo * (m.reflection / count as f32) * sum;
-                } else {
-                    path.counts.reflection += 1;
-                    let r = Ray::new(origin, mirror, 0.0, f32::INFINITY);
-                    let (c, seen) = self.trace(&r, at.next(0.5, medium), path);
-                    secondary = seen.prim;
-                    colour += s.albedo * m.reflection * c;
+    /// Glossy reflection at a lit hit, when its material has it and the depth allows:
+    /// the average over rays in a cone around the mirror direction, weighted. All the
+    /// cone's directions are drawn before any of its rays is traced, so the rays can be
+    /// traced together ([`Shader::closest_hits`]) and then shaded one by one in order,
+    /// each ray tree drawing from the generator after the previous one's, in both modes.
+    pub(super) fn glossy(&self, ray: &Ray, lit: &Lit, at: Bounce, path: &mut Path) -> Option<Vec3> {
+        let (s, m) = (&lit.s, lit.s.material);
+        let settings = &self.scene.settings;
+        if at.depth >= settings.max_depth || m.reflection <= 0.0 || !is_glossy(m) {
+            return None;
+        }
+        let axis = self.mirror_direction(ray.dir, s);
+        let origin = s.p + s.ng * lit.epsilon;
+        let count = scaled_count(settings.glossy_samples, at.budget);
+        let cos_max = m.glossiness.min(std::f32::consts::FRAC_PI_2).cos();
+        let rays: Vec<Ray> = (0..count)
+            .map(|i| {
+                let (r1, r2) = stratified(i, path.rng.next_f32(), path.rng.next_f32());
+                let mut dir = sample_cone(axis, cos_max, r1, r2);
+                if dir.dot(s.ng) <= 0.0 {
+                    dir = reflect(dir, s.ng);
                 }
-            }
-            if m.refraction > 0.0 {
-                let eta = if s.inside { m.ior } else { 1.0 / m.ior };
-                let (c, seen) = match self.refract_direction(ray.dir, &s, eta) {
-                    Some(dir) => {
-                        path.counts.refraction += 1;
-                        let beyond = if s.inside {
-                            Vec3::ZERO
-                        } else {
-                            absorption_coefficient(m)
-                        };
-                        let r = Ray::new(s.p - s.ng * epsilon, dir, 0.0, f32::INFINITY);
-                        self.trace(&r, at.next(0.5, beyond), path)
-                    }
-                    None => {
-                        path.counts.reflection += 1;
-                        let dir = self.mirror_direction(ray.dir, &s);
-                        let r = Ray::new(s.p + s.ng * epsilon, dir, 0.0, f32::INFINITY);
-                        self.trace(&r, at.next(0.5, medium), path)
-                    }
-                };
-                if secondary == NO_HIT {
-                    secondary = seen.prim;
-                }
-                colour += c * m.refraction;
+                Ray::new(origin, dir, 0.0, f32::INFINITY)
+            })
+            .collect();
+        path.counts.glossy += count as u64;
+        let next = at.next(0.25, at.medium);
+        let mut sum = Vec3::ZERO;
+        for chunk in rays.chunks(LANES) {
+            let hits = self.closest_hits(chunk, &mut path.counts.packets.glossy);
+            for (r, hit) in chunk.iter().zip(hits) {
+                sum += self.finish(r, hit, next, path).0;
             }
         }
+        Some(s.albedo * (m.reflection / count as f32) * sum)
+    }
 
-        let sig = HitSignature {
-            prim: hit.prim,
-            lights: light_bits,
-            secondary,
+    /// The mirror ray of a lit hit, when its material is a (non-glossy) mirror and the
+    /// depth allows. Counts it.
+    pub(super) fn mirror(
+        &self,
+        ray: &Ray,
+        lit: &Lit,
+        at: Bounce,
+        counts: &mut RayCounts,
+    ) -> Option<Spawn> {
+        let (s, m) = (&lit.s, lit.s.material);
+        if at.depth >= self.scene.settings.max_depth || m.reflection <= 0.0 || is_glossy(m) {
+            return None;
+        }
+        counts.reflection += 1;
+        let dir = self.mirror_direction(ray.dir, s);
+        Some(Spawn {
+            ray: Ray::new(s.p + s.ng * lit.epsilon, dir, 0.0, f32::INFINITY),
+            at: at.next(0.5, at.medium),
+            weight: s.albedo * m.reflection,
+        })
+    }
+
+    /// The refraction ray of a lit hit (Snell's law, or the totally internally reflected
+    /// ray past the critical angle), when its material refracts and the depth allows.
+    /// Counts it.
+    pub(super) fn refraction(
+        &self,
+        ray: &Ray,
+        lit: &Lit,
+        at: Bounce,
+        counts: &mut RayCounts,
+    ) -> Option<Spawn> {
+        let (s, m) = (&lit.s, lit.s.material);
+        if at.depth >= self.scene.settings.max_depth || m.refraction <= 0.0 {
+            return None;
+        }
+        let eta = if s.inside { m.ior } else { 1.0 / m.ior };
+        let (ray, at) = match self.refract_direction(ray.dir, s, eta) {
+            Some(dir) => {
+                counts.refraction += 1;
+                let beyond = if s.inside {
+                    Vec3::ZERO
+                } else {
+                    absorption_coefficient(m)
+                };
+                let r = Ray::new(s.p - s.ng * lit.epsilon, dir, 0.0, f32::INFINITY);
+                (r, at.next(0.5, beyond))
+            }
+            None => {
+                counts.reflection += 1;
+                let dir = self.mirror_direction(ray.dir, s);
+                let r = Ray::new(s.p + s.ng * lit.epsilon, dir, 0.0, f32::INFINITY);
+                (r, at.next(0.5, at.medium))
+            }
         };
-        (colour, sig)
+        Some(Spawn {
+            ray,
+            at,
+            weight: Vec3::splat(m.refraction),
+        })
     }
 
     /// Mirror direction about the shading normal, or about the geometric normal when an

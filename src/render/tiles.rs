@@ -7,15 +7,17 @@
 //! the pixels left of and above a tile instead of waiting for its neighbours.
 //!
 //! Camera rays are issued as 2x2 pixel quads, lanes in the order of RAYS.md ((x,y),
-//! (x+1,y), (x,y+1), (x+1,y+1)), through [`shade_quad`]. That is the seam where the
-//! packet path plugs in: a [`Mode`] selects how a quad is traced and shaded; everything
-//! else here (tiling, supersampling, adaptive refinement, counting) is shared.
+//! (x+1,y), (x,y+1), (x+1,y+1)), through [`shade_quad`], and a supersampled pixel's
+//! samples through [`supersample`]. Those are the seams where the packet path plugs in:
+//! a [`Mode`] selects how they are traced and shaded; everything else here (tiling,
+//! adaptive refinement, counting) is shared.
 
 use super::film::Film;
-use super::sample::pixel_rng;
+use super::sample::{Pcg32, pixel_rng};
 use super::shade::{HitSignature, RayCounts, Shader};
-use super::shade_packet::shade_quad_packet;
+use super::shade_packet::{shade_quad_packet, supersample_packet};
 use crate::accel::Accel;
+use crate::ray::Ray;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
 use crate::simd::LANES;
 use glam::Vec3;
@@ -30,8 +32,9 @@ pub enum Mode {
     /// One ray at a time through [`Shader`]: the reference.
     #[default]
     Scalar,
-    /// Camera quads as 4-ray packets and area-light shadow rays in packets
-    /// ([`super::shade_packet`]); the same image as `Scalar`, bit for bit.
+    /// Camera quads and sub-pixel samples as 4-ray packets, their mirror and refraction
+    /// rays in packets where the lanes agree, glossy and shadow rays of one hit point in
+    /// packets ([`super::shade_packet`]); the same image as `Scalar`, bit for bit.
     Packet,
 }
 
@@ -153,16 +156,28 @@ pub fn supersample(
 ) -> Vec3 {
     let n = n.max(1);
     let mut sum = Vec3::ZERO;
-    for j in 0..n {
-        for i in 0..n {
-            let mut rng = pixel_rng(seed, x, y, first + j * n + i);
-            let fx = (i as f32 + rng.next_f32()) / n as f32;
-            let fy = (j as f32 + rng.next_f32()) / n as f32;
-            let ray = frame.ray(x as f32 + fx, y as f32 + fy);
-            sum += shader.trace_primary(&ray, &mut rng, counts).0;
-        }
+    for k in 0..n * n {
+        let (ray, mut rng) = sub_pixel_sample(frame, seed, (x, y), n, first, k);
+        sum += shader.trace_primary(&ray, &mut rng, counts).0;
     }
     sum / (n * n) as f32
+}
+
+/// Sample `k` (row-major) of the `n x n` of pixel `(x, y)` whose indices start at
+/// `first`: its ray, jittered inside its cell, and its generator after the jitter.
+pub fn sub_pixel_sample(
+    frame: &CameraFrame,
+    seed: u64,
+    (x, y): (u32, u32),
+    n: u32,
+    first: u32,
+    k: u32,
+) -> (Ray, Pcg32) {
+    let (i, j) = (k % n, k / n);
+    let mut rng = pixel_rng(seed, x, y, first + k);
+    let fx = (i as f32 + rng.next_f32()) / n as f32;
+    let fy = (j as f32 + rng.next_f32()) / n as f32;
+    (frame.ray(x as f32 + fx, y as f32 + fy), rng)
 }
 
 struct TileContext<'a> {
@@ -176,11 +191,10 @@ impl TileContext<'_> {
     /// The tile's pixels, row-major, and the rays they took.
     fn render_tile(&self, tile: &Tile) -> (Vec<Vec3>, RayCounts) {
         let mut counts = RayCounts::default();
-        let (seed, shader, frame) = (self.seed, &self.shader, &self.frame);
         let pixels = match self.shader.scene.settings.antialias {
             AntiAlias::Full(n) => (0..tile.height)
                 .flat_map(|y| (0..tile.width).map(move |x| (tile.x0 + x, tile.y0 + y)))
-                .map(|p| supersample(shader, frame, seed, p, n, 0, &mut counts))
+                .map(|p| self.supersample(p, n, 0, &mut counts))
                 .collect(),
             AntiAlias::None => self
                 .centre_pass(tile, &mut counts)
@@ -190,6 +204,15 @@ impl TileContext<'_> {
             AntiAlias::Adaptive(n) => self.adaptive(tile, n, &mut counts),
         };
         (pixels, counts)
+    }
+
+    /// [`supersample`], or its packet twin in packet mode.
+    fn supersample(&self, p: (u32, u32), n: u32, first: u32, counts: &mut RayCounts) -> Vec3 {
+        let (shader, frame, seed) = (&self.shader, &self.frame, self.seed);
+        match self.mode {
+            Mode::Scalar => supersample(shader, frame, seed, p, n, first, counts),
+            Mode::Packet => supersample_packet(shader, frame, seed, p, n, first, counts),
+        }
     }
 
     /// One centre sample per pixel of the tile, issued as 2x2 quads; row-major results.
@@ -278,7 +301,7 @@ impl TileContext<'_> {
             let edge = left.is_some_and(|s| s != sig) || upper.is_some_and(|s| s != sig);
             pixels.push(if edge {
                 let p = (tile.x0 + x as u32, tile.y0 + y as u32);
-                supersample(&self.shader, &self.frame, self.seed, p, n, 1, counts)
+                self.supersample(p, n, 1, counts)
             } else {
                 colour
             });
