@@ -149,3 +149,42 @@ fn kdtree_infinite_direction_misses_the_plane() {
     assert!(!BruteForce::new(&g).occluded(&ray));
     assert!(BruteForce::new(&g).intersect(&ray).is_none());
 }
+
+/// The OBJ loader on the bytes of `text`, written to a file as the `obj` target does.
+fn load_obj(
+    test: &str,
+    text: &str,
+) -> Result<raypack::scene::obj::ObjMesh, raypack::scene::ObjError> {
+    let path = std::env::temp_dir().join(format!("raypack-fuzz-{test}-{}.obj", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    let result = raypack::scene::obj::load(&path);
+    std::fs::remove_file(&path).unwrap();
+    result
+}
+
+/// obj corpus entry 10b97e63 (shrunk by removing lines): a face pointing forward to a
+/// vertex defined after a `g` line. The line scan allowed forward indices, `tobj` closes
+/// the mesh at `g` and refused it as "face vertex index out of bounds", naming no line.
+/// Now the face's own line is reported.
+#[test]
+fn obj_forward_index_past_a_group_names_its_line() {
+    let text = "v 0 1 0\nf 11 2 2 3\ng 1 2 0\nv 2 0 0\nv 1 0 0\nv 0 1 0\nv 0 1 0\n\
+                v 0 1 0\nv 0 1 0\nv 0 0 0\nv 1 0 0\nv 0 1 00.176777\nv 2 0 0";
+    let e = load_obj("forward", text).expect_err("a forward index loads");
+    assert!(
+        matches!(
+            e,
+            raypack::scene::ObjError::IndexOutOfRange {
+                line: 2,
+                index: 11,
+                count: 1,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(
+        e.to_string().contains(":2: f: index 11 is out of range"),
+        "{e}"
+    );
+}
