@@ -249,6 +249,14 @@ pub(super) struct Lit<'m> {
 }
 
 impl Lit<'_> {
+    /// Whether [`Shader::mirror`] or [`Shader::refraction`] may spawn a ray here: false
+    /// lets the packet path skip both steps for a packet of matte or final-bounce hits.
+    pub(super) fn may_spawn(&self, at: Bounce, shader: &Shader) -> bool {
+        let m = self.s.material;
+        at.depth < shader.scene.settings.max_depth
+            && ((m.reflection > 0.0 && !is_glossy(m)) || m.refraction > 0.0)
+    }
+
     /// The hit's signature, given what its first mirror or refraction ray hit.
     pub(super) fn signature(&self, hit: &Hit, secondary: u32) -> HitSignature {
         HitSignature {
