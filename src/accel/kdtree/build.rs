@@ -325,7 +325,7 @@ impl KdTree {
             max_depth_limit: max_depth,
         };
         KdTree {
-            nodes: out.nodes.into(),
+            nodes: super::node::with_leaf_ranges(out.nodes, &out.leaves).into(),
             leaves: out.leaves,
             prim_indices: out.prim_indices,
             prims,
