@@ -124,9 +124,14 @@ impl Prims {
         }
     }
 
-    /// Folds the planes into `best` (closest-hit order of [`Hit::is_closer`]).
+    /// Folds the planes into `best` (closest-hit order of [`Hit::is_closer`]). A ray
+    /// that is not [`Ray::is_usable`] hits no plane: `best.t.min(NaN)` would otherwise
+    /// drop a NaN `t_max` and let the plane through (the packet twin's `min` keeps it).
     #[inline]
     pub fn intersect_planes(&self, ray: &Ray, best: &mut Hit) {
+        if !ray.is_usable() {
+            return;
+        }
         for (i, p) in self.planes.iter().enumerate() {
             if let Some(t) = prims::intersect_plane(p, ray, best.t.min(ray.t_max)) {
                 let prim = self.plane_base + i as u32;
@@ -142,11 +147,15 @@ impl Prims {
         }
     }
 
-    /// True when any plane lies in `(t_min, t_max)`.
+    /// True when any plane lies in `(t_min, t_max)`; never for a ray that is not
+    /// [`Ray::is_usable`] (an infinite direction component gives `t = 0` on a plane
+    /// along it).
     #[inline]
     pub fn planes_occlude(&self, ray: &Ray) -> bool {
-        self.planes
-            .iter()
-            .any(|p| prims::intersect_plane(p, ray, ray.t_max).is_some())
+        ray.is_usable()
+            && self
+                .planes
+                .iter()
+                .any(|p| prims::intersect_plane(p, ray, ray.t_max).is_some())
     }
 }

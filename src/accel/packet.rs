@@ -69,6 +69,17 @@ impl RayPacket {
         std::array::from_fn(|i| pixel(i as u32))
     }
 
+    /// Lanes that can hit anything; the twin of [`Ray::is_usable`] (finite origin and
+    /// direction, a non-zero direction, `t_min <= t_max`).
+    #[inline]
+    pub fn usable(&self) -> Mask {
+        let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
+        let zero_dir = self.dir[0].simd_eq(Vf::ZERO)
+            & self.dir[1].simd_eq(Vf::ZERO)
+            & self.dir[2].simd_eq(Vf::ZERO);
+        finite(&self.org) & finite(&self.dir) & !zero_dir & self.t_min.simd_le(self.t_max)
+    }
+
     /// Bit `i` set when lane `i` is active.
     #[inline]
     pub fn active_bits(&self) -> u32 {

@@ -120,6 +120,7 @@ impl Prims {
     /// [`Prims::intersect_planes`].
     #[inline]
     pub fn intersect_planes_packet(&self, rays: &RayPacket, active: Mask, best: &mut HitPacket) {
+        let active = active & rays.usable();
         for (i, p) in self.planes.iter().enumerate() {
             let hits = intersect_plane_packet(p, rays, active, best.t.min(rays.t_max));
             best.merge(&hits, self.plane_base + i as u32);
@@ -129,6 +130,7 @@ impl Prims {
     /// Lanes of `active` that a plane occludes; twin of [`Prims::planes_occlude`].
     #[inline]
     pub fn planes_occlude_packet(&self, rays: &RayPacket, active: Mask) -> Mask {
+        let active = active & rays.usable();
         let mut hit = Mask::ZERO;
         for p in &self.planes {
             hit = hit | intersect_plane_packet(p, rays, active & !hit, rays.t_max).mask;

@@ -487,10 +487,6 @@ fn scan_obj(path: &Path, mut reader: impl BufRead) -> Result<Scan, ObjError> {
     let mut current_usemtl = NO_USEMTL;
     let mut texcoord_count = 0usize;
     let mut normal_count = 0usize;
-    // The largest positive index of each kind and its line: positive indices may point
-    // forward (tobj resolves them after the whole file is read), so they are checked at
-    // the end.
-    let mut max_ref: [(i64, usize); 3] = [(0, 0); 3];
     // First `v` line with and without vertex colours (tobj fails on a mix).
     let mut colour_lines: [Option<usize>; 2] = [None, None];
     let mut buf = Vec::new();
@@ -608,7 +604,7 @@ fn scan_obj(path: &Path, mut reader: impl BufRead) -> Result<Scan, ObjError> {
                         let Ok(x) = part.parse::<i64>() else {
                             return Err(malformed("f", format!("`{part}` is not an index")));
                         };
-                        parts[k] = Some(resolve(path, line_no, k, x, counts[k], &mut max_ref)?);
+                        parts[k] = Some(resolve(path, line_no, k, x, counts[k])?);
                     }
                     let Some(v) = parts[0] else {
                         return Err(malformed("f", format!("`{word}` has no vertex index")));
@@ -658,19 +654,6 @@ fn scan_obj(path: &Path, mut reader: impl BufRead) -> Result<Scan, ObjError> {
             _ => {}
         }
     }
-    let counts = [scan.positions.len(), texcoord_count, normal_count];
-    for (k, &(index, line)) in max_ref.iter().enumerate() {
-        if index as u64 > counts[k] as u64 {
-            return Err(ObjError::IndexOutOfRange {
-                path: path.to_path_buf(),
-                line,
-                element: "f",
-                index,
-                count: counts[k],
-                what: KIND_NAMES[k],
-            });
-        }
-    }
     if scan.positions.len() > u32::MAX as usize {
         return Err(ObjError::TooLarge {
             path: path.to_path_buf(),
@@ -683,15 +666,11 @@ fn scan_obj(path: &Path, mut reader: impl BufRead) -> Result<Scan, ObjError> {
 
 const KIND_NAMES: [&str; 3] = ["vertices", "texture coordinates", "normals"];
 
-/// Turns a 1-based (or negative, relative) index of kind `k` into a 0-based one.
-fn resolve(
-    path: &Path,
-    line: usize,
-    k: usize,
-    x: i64,
-    count: usize,
-    max_ref: &mut [(i64, usize); 3],
-) -> Result<u32, ObjError> {
+/// Turns a 1-based (or negative, relative) index of kind `k` into a 0-based one. Both
+/// must name one of the `count` elements defined above the face: `tobj` cannot resolve
+/// an index pointing forward past a `g`, `o` or `usemtl` line (it closes the mesh there)
+/// and reports it without a line, so raypack refuses every forward index at its line.
+fn resolve(path: &Path, line: usize, k: usize, x: i64, count: usize) -> Result<u32, ObjError> {
     let out_of_range = || ObjError::IndexOutOfRange {
         path: path.to_path_buf(),
         line,
@@ -708,11 +687,8 @@ fn resolve(
         });
     }
     let i = if x < 0 { count as i64 + x } else { x - 1 };
-    if i < 0 || i >= u32::MAX as i64 {
+    if i < 0 || i >= count as i64 {
         return Err(out_of_range());
-    }
-    if x > max_ref[k].0 {
-        max_ref[k] = (x, line);
     }
     Ok(i as u32)
 }

@@ -7,13 +7,20 @@
 //!   start, then primitive id. The events are sorted once, at the root.
 //! - A node sweeps its three sorted lists once to price every candidate plane with the
 //!   surface area heuristic (planar primitives go to the cheaper side), classifies its
-//!   primitives left, right or both, and splits its lists by filtering; only the
-//!   straddling primitives get new events, which are sorted (few) and merged in.
-//! - Perfect splits: a straddling triangle is tested against each child box with
-//!   Akenine-Moller's separating-axis test and clipped to it (Sutherland-Hodgman), so its
-//!   events are the bounds of its part inside the child. Spheres use the squared-distance
-//!   test, boxes their intersection with the child. Clipped bounds are widened by a few
-//!   ulps where clipping rounded, so a primitive is never left out of a cell it touches.
+//!   primitives left, right or both in one pass over the split axis's events, and splits
+//!   its lists by filtering; only the straddling primitives get new events, which are
+//!   sorted (few) and merged in during the filtering.
+//! - Memory: the children's lists go into per-depth buffers that only grow (a node at
+//!   depth d writes into `levels[d]`, which stay put while the left subtree is built
+//!   below them), and the per-node scratch is per thread, so a node allocates nothing
+//!   once the buffers have their size.
+//! - Perfect splits: a straddling triangle is clipped (Sutherland-Hodgman) to the node's
+//!   cell, only by the faces that cut its bounds, and that polygon is cut by the split
+//!   plane for each child, so its events are the bounds of its part inside the child;
+//!   when clipping leaves nothing, Akenine-Moller's separating-axis test decides. Spheres
+//!   use the squared-distance test, boxes their intersection with the child. Clipped
+//!   bounds are widened by a few ulps where clipping rounded, so a primitive is never
+//!   left out of a cell it touches.
 //! - Degenerate triangles (which no ray can hit) and non-finite primitives are left out;
 //!   ids never change. Planes are never in the tree.
 //! - Nodes are laid out depth first: a node's two children are allocated as a pair, then
@@ -118,9 +125,10 @@ fn push_events(events: &mut [Vec<u64>; 3], b: &Aabb, prim: u32) {
 }
 
 /// A node waiting to be built: its cell and its three sorted event lists.
-struct Task {
+#[derive(Clone, Copy)]
+struct Task<'e> {
     cell: Aabb,
-    events: [Vec<u64>; 3],
+    events: [&'e [u64]; 3],
     prim_count: u32,
     depth: u32,
 }
@@ -139,6 +147,48 @@ struct Split {
 const LEFT: u8 = 1;
 const RIGHT: u8 = 2;
 const BOTH: u8 = 3;
+
+/// Three event lists in buffers that only grow, so that once they have reached their
+/// size a node's lists cost no allocation; `lens` is the part in use.
+#[derive(Default)]
+struct Lists {
+    bufs: [Vec<u64>; 3],
+    lens: [usize; 3],
+}
+
+impl Lists {
+    fn get(&self) -> [&[u64]; 3] {
+        [0, 1, 2].map(|axis| &self.bufs[axis][..self.lens[axis]])
+    }
+
+    /// `n` writable events on `axis` (the caller sets `lens[axis]`).
+    fn room(&mut self, axis: usize, n: usize) -> &mut [u64] {
+        let buf = &mut self.bufs[axis];
+        if buf.len() < n {
+            buf.resize(n, 0);
+        }
+        &mut buf[..n]
+    }
+}
+
+/// One thread's working memory, reused by every node it splits.
+struct Scratch {
+    /// Where each primitive of the node being split goes, indexed by primitive id.
+    side: Vec<u8>,
+    /// The node's straddling primitives.
+    straddlers: Vec<u32>,
+    /// The straddlers' clipped events: left child, right child; per axis.
+    fresh: [[Vec<u64>; 3]; 2],
+}
+
+/// The children's event lists, one pair per depth: a node at depth `d` writes its
+/// children's lists into `levels[d]` (relative to the subtree's root), which stay put
+/// while the left subtree is built below them.
+type Levels = Vec<[Lists; 2]>;
+
+fn new_levels() -> Levels {
+    (0..=MAX_DEPTH).map(|_| Default::default()).collect()
+}
 
 /// The arrays being written, in depth-first order.
 #[derive(Default)]
@@ -185,7 +235,7 @@ struct Builder<'a> {
     g: &'a Geometry,
     params: &'a BuildParams,
     max_depth: u32,
-    /// Size of the per-task classification scratch (one byte per bounded primitive).
+    /// Size of the classification scratch (one byte per bounded primitive).
     prim_total: usize,
 }
 
@@ -209,6 +259,14 @@ fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
     }
     let b = g.prim_bounds(prim);
     (b.min.is_finite() && b.max.is_finite() && !b.is_empty()).then_some(b)
+}
+
+/// The cells on either side of the plane `pos` on `axis`.
+fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
+    let (mut left, mut right) = (*cell, *cell);
+    left.max[axis] = pos;
+    right.min[axis] = pos;
+    (left, right)
 }
 
 impl KdTree {
@@ -254,21 +312,20 @@ impl KdTree {
         };
         let mut out = Out::default();
         out.nodes.push(KdNode::leaf(0));
-        let mut scratch = vec![0u8; builder.prim_total];
         let task = Task {
             cell,
-            events,
+            events: [&events[0], &events[1], &events[2]],
             prim_count,
             depth: 0,
         };
-        builder.build_node(task, 0, &mut out, &mut scratch);
+        builder.build_node(task, 0, &mut out, &mut builder.scratch(), &mut new_levels());
         let stats = BuildStats {
             build_seconds: start.elapsed().as_secs_f64(),
             tree_prims: prim_count,
             max_depth_limit: max_depth,
         };
         KdTree {
-            nodes: out.nodes.into(),
+            nodes: super::node::with_leaf_ranges(out.nodes, &out.leaves).into(),
             leaves: out.leaves,
             prim_indices: out.prim_indices,
             prims,
@@ -279,7 +336,24 @@ impl KdTree {
 }
 
 impl Builder<'_> {
-    fn build_node(&self, task: Task, slot: usize, out: &mut Out, scratch: &mut [u8]) {
+    fn scratch(&self) -> Scratch {
+        Scratch {
+            side: vec![0; self.prim_total],
+            straddlers: Vec::new(),
+            fresh: Default::default(),
+        }
+    }
+
+    /// Builds the subtree of `task` into `out`, its root at `slot`; `levels[0]` takes the
+    /// children's lists.
+    fn build_node(
+        &self,
+        task: Task<'_>,
+        slot: usize,
+        out: &mut Out,
+        scratch: &mut Scratch,
+        levels: &mut [[Lists; 2]],
+    ) {
         let split = if task.prim_count == 0 || task.depth >= self.max_depth {
             None
         } else {
@@ -290,27 +364,44 @@ impl Builder<'_> {
             self.make_leaf(&task, slot, out);
             return;
         };
-        let (left, right) = self.split_task(task, &split, scratch);
+        let (here, deeper) = levels
+            .split_first_mut()
+            .expect("a level for every depth below the limit");
+        let (n_left, n_right) = self.split_task(&task, &split, scratch, here);
+        let (left_cell, right_cell) = child_cells(&task.cell, split.axis, split.pos);
+        let [left_lists, right_lists] = &*here;
+        let left = Task {
+            cell: left_cell,
+            events: left_lists.get(),
+            prim_count: n_left,
+            depth: task.depth + 1,
+        };
+        let right = Task {
+            cell: right_cell,
+            events: right_lists.get(),
+            prim_count: n_right,
+            depth: task.depth + 1,
+        };
         let first = out.nodes.len();
         assert!(first < MAX_INDEX as usize, "kd-tree: too many nodes");
         out.nodes[slot] = KdNode::inner(split.axis as u32, split.pos, first as u32);
         out.nodes.extend([KdNode::leaf(0), KdNode::leaf(0)]);
-        let big = left.prim_count.max(right.prim_count) >= self.params.parallel_min_prims;
+        let big = n_left.max(n_right) >= self.params.parallel_min_prims;
         if self.params.parallel && big {
             let (_, sub) = rayon::join(
-                || self.build_node(left, first, out, scratch),
+                || self.build_node(left, first, out, scratch, deeper),
                 || {
                     let mut sub = Out::default();
                     sub.nodes.push(KdNode::leaf(0));
-                    let mut scratch = vec![0u8; self.prim_total];
-                    self.build_node(right, 0, &mut sub, &mut scratch);
+                    let mut levels = new_levels();
+                    self.build_node(right, 0, &mut sub, &mut self.scratch(), &mut levels);
                     sub
                 },
             );
             out.append(sub, first + 1);
         } else {
-            self.build_node(left, first, out, scratch);
-            self.build_node(right, first + 1, out, scratch);
+            self.build_node(left, first, out, scratch, deeper);
+            self.build_node(right, first + 1, out, scratch, deeper);
         }
     }
 
@@ -351,113 +442,126 @@ impl Builder<'_> {
             let cap = e[u] * e[v];
             let perimeter = e[u] + e[v];
             let (lo, hi) = (cell.min[axis], cell.max[axis]);
+            // Planes strictly inside the cell, as key bounds (keys order like positions).
+            let (lo_key, hi_key) = (order_bits(lo + 0.0) as u64, order_bits(hi + 0.0) as u64);
             let (mut n_left, mut n_right) = (0u32, n);
             // This position's planar events, and its planar and start events that join
             // the left side once the plane through it has been priced.
             let (mut planars, mut pending) = (0u32, 0u32);
+            let mut next_key = events.first().map_or(0, |&ev| ev >> 32);
             for (i, &ev) in events.iter().enumerate() {
                 let kind = event_kind(ev);
                 n_right -= (kind != START) as u32;
                 planars += (kind == PLANAR) as u32;
                 pending += (kind != END) as u32;
-                let key = ev >> 32;
-                // Shared vertices make equal positions common and unpredictable, so the
-                // plane is priced at every event (branch-free) and kept only at the
-                // last event of its position.
-                let last = events.get(i + 1).is_none_or(|&next| next >> 32 != key);
-                let pos = from_order_bits(key as u32);
-                let p_left = (cap + (pos - lo) * perimeter) * inv_area;
-                let p_right = (cap + (hi - pos) * perimeter) * inv_area;
-                let cost = |nl: u32, nr: u32| {
-                    let c = k_t + k_i * (p_left * nl as f32 + p_right * nr as f32);
-                    if nl == 0 || nr == 0 { c * bonus } else { c }
-                };
-                let with_left = cost(n_left + planars, n_right);
-                let with_right = cost(n_left, n_right + planars);
-                let planar_left = with_left < with_right;
-                let c = if planar_left { with_left } else { with_right };
-                if c < best_cost && last && pos > lo && pos < hi {
-                    best_cost = c;
-                    best = Some(Split {
-                        axis,
-                        pos,
-                        planar_left,
-                        cost: c,
-                    });
+                let key = next_key;
+                next_key = events.get(i + 1).map_or(u64::MAX, |&next| next >> 32);
+                // A plane is priced once, at the last event of its position.
+                if next_key == key {
+                    continue;
                 }
-                n_left += pending * last as u32;
-                pending *= !last as u32;
-                planars *= !last as u32;
+                if key > lo_key && key < hi_key {
+                    let pos = from_order_bits(key as u32);
+                    let p_left = (cap + (pos - lo) * perimeter) * inv_area;
+                    let p_right = (cap + (hi - pos) * perimeter) * inv_area;
+                    let cost = |nl: u32, nr: u32| {
+                        let c = k_t + k_i * (p_left * nl as f32 + p_right * nr as f32);
+                        if nl == 0 || nr == 0 { c * bonus } else { c }
+                    };
+                    let with_left = cost(n_left + planars, n_right);
+                    let with_right = cost(n_left, n_right + planars);
+                    let planar_left = with_left < with_right;
+                    let c = if planar_left { with_left } else { with_right };
+                    if c < best_cost {
+                        best_cost = c;
+                        best = Some(Split {
+                            axis,
+                            pos,
+                            planar_left,
+                            cost: c,
+                        });
+                    }
+                }
+                n_left += pending;
+                pending = 0;
+                planars = 0;
             }
         }
         best
     }
 
-    /// Classifies the node's primitives against `split` and builds the children's event
-    /// lists: filtered copies of the parent's, merged with the freshly clipped events of
-    /// the straddling primitives.
-    fn split_task(&self, task: Task, split: &Split, scratch: &mut [u8]) -> (Task, Task) {
+    /// Classifies the node's primitives against `split` and writes the children's event
+    /// lists into `kids`: filtered copies of the parent's, merged with the freshly clipped
+    /// events of the straddling primitives. Returns the children's primitive counts.
+    fn split_task(
+        &self,
+        task: &Task,
+        split: &Split,
+        scratch: &mut Scratch,
+        kids: &mut [Lists; 2],
+    ) -> (u32, u32) {
         let (axis, pos) = (split.axis, split.pos);
-        let axis_events = &task.events[axis];
-        for &e in axis_events {
-            scratch[event_prim(e) as usize] = BOTH;
-        }
-        // An end at or before the plane makes a primitive left, a start at or after it
-        // right, a planar event either; the masks keep BOTH (0b11) otherwise. Keys
-        // compare like positions.
+        let Scratch {
+            side,
+            straddlers,
+            fresh,
+        } = scratch;
+        straddlers.clear();
+        // One pass in sweep order (a primitive's start comes before its end): a start at
+        // or after the plane makes a primitive right, an earlier one makes it straddle
+        // until an end at or before the plane makes it left; a planar event decides
+        // alone. Keys compare like positions.
         let key = order_bits(pos) as u64;
         let (mut n_left, mut n_right) = (0, 0);
-        for &e in axis_events {
-            let (kind, at) = (event_kind(e), e >> 32);
-            let planar = kind == PLANAR;
-            let left = (kind == END && at <= key)
-                | (planar && (at < key || (at == key && split.planar_left)));
-            let right = (kind == START && at >= key) | (planar && !left);
-            scratch[event_prim(e) as usize] &= BOTH ^ ((left as u8) << 1) ^ (right as u8);
-            n_left += left as u32;
-            n_right += right as u32;
-        }
-        let mut left_cell = task.cell;
-        left_cell.max[axis] = pos;
-        let mut right_cell = task.cell;
-        right_cell.min[axis] = pos;
-        let mut left_new: [Vec<u64>; 3] = Default::default();
-        let mut right_new: [Vec<u64>; 3] = Default::default();
-        for &e in axis_events {
-            if event_kind(e) != START || scratch[event_prim(e) as usize] != BOTH {
-                continue;
+        for &e in task.events[axis] {
+            let (kind, at, prim) = (event_kind(e), e >> 32, event_prim(e));
+            let s = &mut side[prim as usize];
+            if kind == START {
+                let right = at >= key;
+                *s = if right { RIGHT } else { BOTH };
+                n_right += right as u32;
+            } else if kind == END {
+                let left = at <= key;
+                if left {
+                    *s = LEFT;
+                } else if *s == BOTH {
+                    straddlers.push(prim);
+                }
+                n_left += left as u32;
+            } else {
+                let left = at < key || (at == key && split.planar_left);
+                *s = if left { LEFT } else { RIGHT };
+                n_left += left as u32;
+                n_right += !left as u32;
             }
-            let prim = event_prim(e);
-            if let Some(b) = self.clip(prim, &left_cell) {
-                push_events(&mut left_new, &b, prim);
+        }
+        let (left_cell, right_cell) = child_cells(&task.cell, axis, pos);
+        let [left_new, right_new] = fresh;
+        left_new.iter_mut().for_each(Vec::clear);
+        right_new.iter_mut().for_each(Vec::clear);
+        for &prim in straddlers.iter() {
+            let parts = match self.g.prim_ref(prim) {
+                PrimRef::Triangle(t) => split_triangle(self.g.triangle(t), &task.cell, axis, pos),
+                _ => [self.clip(prim, &left_cell), self.clip(prim, &right_cell)],
+            };
+            if let Some(b) = parts[0] {
+                push_events(left_new, &b, prim);
                 n_left += 1;
             }
-            if let Some(b) = self.clip(prim, &right_cell) {
-                push_events(&mut right_new, &b, prim);
+            if let Some(b) = parts[1] {
+                push_events(right_new, &b, prim);
                 n_right += 1;
             }
         }
-        let mut left_events: [Vec<u64>; 3] = Default::default();
-        let mut right_events: [Vec<u64>; 3] = Default::default();
-        for (a, src) in task.events.into_iter().enumerate() {
-            left_new[a].sort_unstable();
-            right_new[a].sort_unstable();
-            (left_events[a], right_events[a]) =
-                split_events(&src, scratch, &left_new[a], &right_new[a]);
+        for a in 0..3 {
+            for list in [&mut left_new[a], &mut right_new[a]] {
+                list.sort_unstable();
+                // A sentinel above every event key ends the merge without a length test.
+                list.push(u64::MAX);
+            }
+            split_events(task.events[a], side, [&left_new[a], &right_new[a]], a, kids);
         }
-        let left = Task {
-            cell: left_cell,
-            events: left_events,
-            prim_count: n_left,
-            depth: task.depth + 1,
-        };
-        let right = Task {
-            cell: right_cell,
-            events: right_events,
-            prim_count: n_right,
-            depth: task.depth + 1,
-        };
-        (left, right)
+        (n_left, n_right)
     }
 
     /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.
@@ -481,47 +585,44 @@ impl Builder<'_> {
     }
 }
 
-/// The events of `src` whose primitives went left and right (straddlers dropped), each
-/// list merged with the sorted new events of its side.
-fn split_events(
-    src: &[u64],
-    scratch: &[u8],
-    left_new: &[u64],
-    right_new: &[u64],
-) -> (Vec<u64>, Vec<u64>) {
-    let mut left = Vec::with_capacity(src.len() + left_new.len());
-    let mut right = Vec::with_capacity(src.len() + right_new.len());
+/// Writes into `kids` the events of `src` (one axis) whose primitives went left and
+/// right (straddlers dropped), each list merged on the way with the sorted new events
+/// of its side (`fresh`, each ending in a `u64::MAX` sentinel). The copy is
+/// branch-free: every event is written to both lists, and only its side's list moves on.
+fn split_events(src: &[u64], side: &[u8], fresh: [&[u64]; 2], axis: usize, kids: &mut [Lists; 2]) {
+    let [left, right] = kids;
+    let [left_new, right_new] = fresh;
+    let l = left.room(axis, src.len() + left_new.len());
+    let r = right.room(axis, src.len() + right_new.len());
+    let (mut n_left, mut n_right) = (0, 0);
+    let (mut i_left, mut i_right) = (0, 0);
     for &e in src {
-        match scratch[event_prim(e) as usize] {
-            LEFT => left.push(e),
-            RIGHT => right.push(e),
-            _ => {}
+        while left_new[i_left] < e {
+            l[n_left] = left_new[i_left];
+            n_left += 1;
+            i_left += 1;
         }
-    }
-    let (n_left, n_right) = (left.len(), right.len());
-    left.resize(n_left + left_new.len(), 0);
-    right.resize(n_right + right_new.len(), 0);
-    merge_back(&mut left, n_left, left_new);
-    merge_back(&mut right, n_right, right_new);
-    (left, right)
-}
-
-/// Merges sorted `extra` into the sorted `buf[..n]` in place, from the back, and cuts
-/// `buf` to the merged length (`buf` has room for both).
-fn merge_back(buf: &mut Vec<u64>, n: usize, extra: &[u64]) {
-    let (mut i, mut j) = (n, extra.len());
-    let mut k = n + extra.len();
-    while j > 0 {
-        k -= 1;
-        if i > 0 && buf[i - 1] > extra[j - 1] {
-            buf[k] = buf[i - 1];
-            i -= 1;
-        } else {
-            buf[k] = extra[j - 1];
-            j -= 1;
+        while right_new[i_right] < e {
+            r[n_right] = right_new[i_right];
+            n_right += 1;
+            i_right += 1;
         }
+        let s = side[event_prim(e) as usize];
+        l[n_left] = e;
+        r[n_right] = e;
+        n_left += (s == LEFT) as usize;
+        n_right += (s == RIGHT) as usize;
     }
-    buf.truncate(n + extra.len());
+    for &e in &left_new[i_left..left_new.len() - 1] {
+        l[n_left] = e;
+        n_left += 1;
+    }
+    for &e in &right_new[i_right..right_new.len() - 1] {
+        r[n_right] = e;
+        n_right += 1;
+    }
+    left.lens[axis] = n_left;
+    right.lens[axis] = n_right;
 }
 
 fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
@@ -531,8 +632,147 @@ fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
 /// Relative widening of coordinates that clipping computed (a few ulps of f32).
 const CLIP_SLACK: f32 = 1e-6;
 
-/// Room for a triangle clipped by six planes (3 + 6 corners), and for rounding.
-const CLIP_VERTICES: usize = 16;
+/// Room for a triangle clipped by seven planes (3 + 7 corners); a polygon that rounding
+/// made more ragged than that takes the exact overlap test's answer instead.
+const CLIP_VERTICES: usize = 10;
+
+/// A convex polygon being clipped (Sutherland-Hodgman): its corners, and a bit per
+/// corner set when the corner is one of the triangle's own rather than computed.
+#[derive(Clone, Copy)]
+struct Polygon {
+    corners: [[f32; 3]; CLIP_VERTICES],
+    exact: u32,
+    len: usize,
+}
+
+impl Polygon {
+    fn triangle(tri: [Vec3; 3]) -> Polygon {
+        let mut corners = [[0.0; 3]; CLIP_VERTICES];
+        for (c, p) in corners.iter_mut().zip(tri) {
+            *c = p.to_array();
+        }
+        Polygon {
+            corners,
+            exact: 0b111,
+            len: 3,
+        }
+    }
+
+    /// The part with `p[axis] <= plane` (`keep_below`) or `>= plane`. `None` when
+    /// rounding made the polygon so ragged that it would overflow the corner array.
+    fn clip(&self, axis: usize, plane: f32, keep_below: bool) -> Option<Polygon> {
+        let inside = |p: &[f32; 3]| {
+            if keep_below {
+                p[axis] <= plane
+            } else {
+                p[axis] >= plane
+            }
+        };
+        let len = self.len;
+        let corners = &self.corners[..len];
+        // Bit i: corner i is on the kept side.
+        let mut kept = 0u32;
+        for (i, p) in corners.iter().enumerate() {
+            kept |= (inside(p) as u32) << i;
+        }
+        if kept == (1 << len) - 1 {
+            return Some(*self);
+        }
+        let mut out = Polygon {
+            corners: [[0.0; 3]; CLIP_VERTICES],
+            exact: 0,
+            len: 0,
+        };
+        let mut n = 0;
+        for (i, a) in corners.iter().enumerate() {
+            let j = if i + 1 == len { 0 } else { i + 1 };
+            let (a_in, b_in) = (kept >> i & 1, kept >> j & 1);
+            if a_in == 1 {
+                *out.corners.get_mut(n)? = *a;
+                out.exact |= (self.exact >> i & 1) << n;
+                n += 1;
+            }
+            if a_in != b_in {
+                let b = &corners[j];
+                let t = (plane - a[axis]) / (b[axis] - a[axis]);
+                let mut p = [0.0; 3];
+                for k in 0..3 {
+                    p[k] = a[k] + (b[k] - a[k]) * t;
+                }
+                p[axis] = plane;
+                *out.corners.get_mut(n)? = p;
+                n += 1;
+            }
+        }
+        out.len = n;
+        Some(out)
+    }
+
+    /// The part inside `cell`, clipping only by the faces that cut `whole`, the bounds
+    /// of the triangle the polygon came from (the others leave it whole).
+    fn clip_to_cell(self, whole: &Aabb, cell: &Aabb) -> Option<Polygon> {
+        let mut poly = self;
+        for axis in 0..3 {
+            if whole.min[axis] < cell.min[axis] {
+                poly = poly.clip(axis, cell.min[axis], false)?;
+            }
+            if whole.max[axis] > cell.max[axis] {
+                poly = poly.clip(axis, cell.max[axis], true)?;
+            }
+            if poly.len == 0 {
+                return None;
+            }
+        }
+        Some(poly)
+    }
+
+    /// Bounds of the corners in `cell`: the triangle's own count exactly, computed ones
+    /// are widened by a few ulps of `scale`, the triangle's largest coordinate. `None`
+    /// when the polygon is empty.
+    fn bounds_in(&self, scale: Vec3, cell: &Aabb) -> Option<Aabb> {
+        if self.len == 0 {
+            return None;
+        }
+        let mut b = Aabb::EMPTY;
+        for (i, &p) in self.corners[..self.len].iter().enumerate() {
+            let p = Vec3::from_array(p);
+            if self.exact >> i & 1 == 1 {
+                b.grow(p);
+            } else {
+                let widen = p.abs().max(scale) * CLIP_SLACK;
+                b.grow(p - widen);
+                b.grow(p + widen);
+            }
+        }
+        let b = intersect_boxes(&b, cell);
+        (!b.is_empty()).then_some(b)
+    }
+}
+
+/// When clipping leaves nothing (or, in theory, rounding makes the polygon ragged),
+/// Akenine-Moller's test on `cell` widened by [`CLIP_SLACK`] decides; if it finds a
+/// sliver that rounding lost, the triangle's bounds `whole` in the cell are the safe
+/// answer.
+fn overlap_fallback(tri: [Vec3; 3], whole: &Aabb, cell: &Aabb) -> Option<Aabb> {
+    let centre = (cell.min + cell.max) * 0.5;
+    let half = (cell.max - cell.min) * 0.5;
+    let slack = (centre.abs() + half) * CLIP_SLACK;
+    if tri_box_overlap(centre, half + slack, tri) {
+        Some(intersect_boxes(whole, cell)).filter(|b| !b.is_empty())
+    } else {
+        None
+    }
+}
+
+fn triangle_bounds(tri: &[Vec3; 3]) -> Aabb {
+    let mut whole = Aabb::EMPTY;
+    tri.iter().for_each(|&p| whole.grow(p));
+    whole
+}
+
+fn contains(cell: &Aabb, b: &Aabb) -> bool {
+    b.min.cmpge(cell.min).all() && b.max.cmple(cell.max).all()
+}
 
 /// Bounds of the part of triangle `tri` inside `cell`, or `None` when they do not meet.
 ///
@@ -542,96 +782,33 @@ const CLIP_VERTICES: usize = 16;
 /// Corners of the triangle count exactly; points that clipping computed are widened by
 /// a few ulps, and the result is intersected with the cell.
 pub fn clip_triangle(tri: [Vec3; 3], cell: &Aabb) -> Option<Aabb> {
-    let mut whole = Aabb::EMPTY;
-    tri.iter().for_each(|&p| whole.grow(p));
-    if whole.min.cmpge(cell.min).all() && whole.max.cmple(cell.max).all() {
+    let whole = triangle_bounds(&tri);
+    if contains(cell, &whole) {
         return Some(whole);
     }
-    // When clipping leaves nothing (or, in theory, rounding makes the polygon
-    // non-convex), the overlap test decides; if it finds a sliver that rounding lost,
-    // the plain bounds in the cell are the safe answer.
-    let fallback = || {
-        let centre = (cell.min + cell.max) * 0.5;
-        let half = (cell.max - cell.min) * 0.5;
-        let slack = (centre.abs() + half) * CLIP_SLACK;
-        if tri_box_overlap(centre, half + slack, tri) {
-            Some(intersect_boxes(&whole, cell)).filter(|b| !b.is_empty())
-        } else {
-            None
-        }
-    };
-    let (lo, hi) = (cell.min.to_array(), cell.max.to_array());
-    // Ping-pong polygons; each corner carries a flag: true for the triangle's own.
-    let mut bufs = [[([0.0f32; 3], true); CLIP_VERTICES]; 2];
-    for (slot, p) in bufs[0].iter_mut().zip(tri) {
-        *slot = (p.to_array(), true);
-    }
-    let (mut cur, mut len) = (0, 3);
-    for axis in 0..3 {
-        for (plane, keep_below) in [(lo[axis], false), (hi[axis], true)] {
-            let inside = |p: &[f32; 3]| {
-                if keep_below {
-                    p[axis] <= plane
-                } else {
-                    p[axis] >= plane
-                }
-            };
-            let [a_buf, b_buf] = &mut bufs;
-            let (poly, next) = if cur == 0 {
-                (&*a_buf, b_buf)
-            } else {
-                (&*b_buf, a_buf)
-            };
-            if poly[..len].iter().all(|(p, _)| inside(p)) {
-                continue;
-            }
-            let mut n = 0;
-            for i in 0..len {
-                let (a, a_exact) = poly[i];
-                let (b, _) = poly[if i + 1 == len { 0 } else { i + 1 }];
-                let (a_in, b_in) = (inside(&a), inside(&b));
-                if a_in {
-                    if n == CLIP_VERTICES {
-                        return fallback();
-                    }
-                    next[n] = (a, a_exact);
-                    n += 1;
-                }
-                if a_in != b_in {
-                    if n == CLIP_VERTICES {
-                        return fallback();
-                    }
-                    let t = (plane - a[axis]) / (b[axis] - a[axis]);
-                    let mut p = [0.0; 3];
-                    for k in 0..3 {
-                        p[k] = a[k] + (b[k] - a[k]) * t;
-                    }
-                    p[axis] = plane;
-                    next[n] = (p, false);
-                    n += 1;
-                }
-            }
-            cur ^= 1;
-            len = n;
-            if len == 0 {
-                return fallback();
-            }
-        }
-    }
     let scale = whole.min.abs().max(whole.max.abs());
-    let mut b = Aabb::EMPTY;
-    for &(p, exact) in &bufs[cur][..len] {
-        let p = Vec3::from_array(p);
-        if exact {
-            b.grow(p);
-        } else {
-            let widen = p.abs().max(scale) * CLIP_SLACK;
-            b.grow(p - widen);
-            b.grow(p + widen);
+    Polygon::triangle(tri)
+        .clip_to_cell(&whole, cell)
+        .and_then(|p| p.bounds_in(scale, cell))
+        .or_else(|| overlap_fallback(tri, &whole, cell))
+}
+
+/// [`clip_triangle`] for both children of `cell` split at `pos` on `axis`: the triangle
+/// is clipped to `cell` once, and that polygon cut by the plane for each side.
+pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Option<Aabb>; 2] {
+    let whole = triangle_bounds(&tri);
+    let scale = whole.min.abs().max(whole.max.abs());
+    let (left_cell, right_cell) = child_cells(cell, axis, pos);
+    let parent = Polygon::triangle(tri).clip_to_cell(&whole, cell);
+    [(left_cell, true), (right_cell, false)].map(|(child, keep_below)| {
+        if contains(&child, &whole) {
+            return Some(whole);
         }
-    }
-    let b = intersect_boxes(&b, cell);
-    (!b.is_empty()).then_some(b)
+        parent
+            .and_then(|p| p.clip(axis, pos, keep_below))
+            .and_then(|p| p.bounds_in(scale, &child))
+            .or_else(|| overlap_fallback(tri, &whole, &child))
+    })
 }
 
 /// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over

@@ -1,13 +1,14 @@
 //! SAH kd-tree: build (Wald & Havran 2006), scalar and packet traversal.
 //!
 //! Layout: `nodes` is one contiguous array of 8-byte [`node::KdNode`]s, children in
-//! pairs; a leaf indexes `leaves`, whose `[first, count]` names a contiguous run of
-//! `prim_indices`. Primitive records live in `prims` (the same [`Prims`] the brute-force
+//! pairs; a leaf holds its `[first, count]`, a contiguous run of `prim_indices`
+//! (the same ranges, in build order, stay in `leaves` for statistics and tests). Primitive records live in `prims` (the same [`Prims`] the brute-force
 //! oracle tests). Planes are not in the tree; traversal tests them beside it.
 //!
 //! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and
-//! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], every leaf range
-//! lies inside `prim_indices`, and every index names a bounded primitive.
+//! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], the leaves' ranges
+//! are exactly those of `leaves`, every leaf range lies inside `prim_indices`, and every
+//! index names a bounded primitive.
 
 pub mod build;
 pub mod node;
@@ -22,7 +23,8 @@ use node::{AlignedNodes, KdNode};
 pub struct KdTree {
     /// Root is `nodes[0]`; the array starts on a 64-byte boundary.
     pub(crate) nodes: AlignedNodes,
-    /// `[first, count]` into `prim_indices`, one per leaf.
+    /// `[first, count]` into `prim_indices`, one per leaf in build order (the nodes
+    /// carry the same ranges).
     pub(crate) leaves: Vec<[u32; 2]>,
     pub(crate) prim_indices: Vec<u32>,
     pub(crate) prims: Prims,
@@ -102,7 +104,7 @@ impl KdTree {
                 1.0
             };
             if node.is_leaf() {
-                let count = self.leaves[node.leaf_index() as usize][1];
+                let count = node.leaf_count();
                 if count == 0 {
                     s.empty_leaves += 1;
                 } else {
@@ -136,7 +138,7 @@ impl KdTree {
             return Err(format!("{n} nodes: expected the root plus pairs"));
         }
         let mut parents = vec![0u32; n];
-        let mut leaf_seen = vec![false; self.leaves.len()];
+        let mut ranges = Vec::with_capacity(self.leaves.len());
         let mut stack = vec![(0u32, 0u32)];
         while let Some((i, depth)) = stack.pop() {
             if depth > build::MAX_DEPTH {
@@ -144,22 +146,17 @@ impl KdTree {
             }
             let node = &self.nodes[i as usize];
             if node.is_leaf() {
-                let l = node.leaf_index() as usize;
-                let Some(&[first, count]) = self.leaves.get(l) else {
-                    return Err(format!("node {i}: leaf {l} out of range"));
-                };
-                if std::mem::replace(&mut leaf_seen[l], true) {
-                    return Err(format!("leaf {l} shared"));
-                }
+                let (first, count) = (node.leaf_first(), node.leaf_count());
+                ranges.push([first, count]);
                 let end = first as usize + count as usize;
                 if end > self.prim_indices.len() {
-                    return Err(format!("leaf {l}: range {first}+{count} out of range"));
+                    return Err(format!("leaf node {i}: range {first}+{count} out of range"));
                 }
                 if let Some(p) = self.prim_indices[first as usize..end]
                     .iter()
                     .find(|&&p| p >= self.prims.plane_base)
                 {
-                    return Err(format!("leaf {l}: {p} is not a bounded primitive"));
+                    return Err(format!("leaf node {i}: {p} is not a bounded primitive"));
                 }
             } else {
                 let c = node.children() as usize;
@@ -181,8 +178,11 @@ impl KdTree {
         if let Some(i) = (1..n).find(|&i| parents[i] != 1) {
             return Err(format!("node {i} is unreachable"));
         }
-        if let Some(l) = leaf_seen.iter().position(|&s| !s) {
-            return Err(format!("leaf {l} is unreachable"));
+        let mut table = self.leaves.clone();
+        ranges.sort_unstable();
+        table.sort_unstable();
+        if ranges != table {
+            return Err("leaf ranges differ from the leaf table".to_string());
         }
         Ok(())
     }

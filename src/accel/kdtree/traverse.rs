@@ -26,8 +26,10 @@ use crate::accel::Accel;
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use glam::Vec3;
+use std::mem::MaybeUninit;
 
-/// Stack entries: one per level at most.
+/// Stack entries: one per level at most (a push happens at most once per level on the
+/// way down, and [`MAX_DEPTH`] bounds the levels).
 const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
@@ -50,80 +52,139 @@ impl KdTree {
         let Some((mut t_near, mut t_far)) = self.clip_ray(ray, inv_dir) else {
             return false;
         };
-        let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
-        let mut depth = 0;
+        let axes = RayAxes::new(ray, inv_dir);
+        let mut stack = Stack::<(u32, f32, f32)>::new();
         let mut node = 0u32;
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
-                let axis = n.axis();
+                let axis = n.axis() & 3;
                 let children = n.children();
-                let (o, d) = (ray.org[axis], ray.dir[axis]);
+                let o = axes.org[axis];
                 // Within `margin` of the plane, a triangle test can round a ray onto
                 // either side of it.
-                let margin = (n.split.abs() + o.abs()) * PLANE_SLACK;
-                if d == 0.0 {
+                let margin = (n.split.abs() + axes.org_abs[axis]) * PLANE_SLACK;
+                if axes.zero[axis] {
                     if o + margin < n.split {
                         node = children;
                     } else if o - margin > n.split {
                         node = children + 1;
                     } else {
-                        stack[depth] = (children + 1, t_near, t_far);
-                        depth += 1;
+                        stack.push((children + 1, t_near, t_far));
                         node = children;
                     }
                     continue;
                 }
-                let t_split = (n.split - o) * inv_dir[axis];
-                let slack = margin * inv_dir[axis].abs();
-                let (near, far) = if d > 0.0 {
-                    (children, children + 1)
-                } else {
-                    (children + 1, children)
-                };
+                let t_split = (n.split - o) * axes.inv[axis];
+                let slack = margin * axes.inv_abs[axis];
+                let near = children + axes.negative[axis];
+                let far = children + 1 - axes.negative[axis];
                 if t_split - slack > t_far {
                     node = near;
                 } else if t_split + slack < t_near {
                     node = far;
                 } else {
-                    stack[depth] = (far, t_near.max(t_split - slack), t_far);
-                    depth += 1;
+                    stack.push((far, t_near.max(t_split - slack), t_far));
                     node = near;
                     t_far = t_far.min(t_split + slack);
                 }
                 continue;
             }
-            let [first, count] = self.leaves[n.leaf_index() as usize];
-            let prims = &self.prim_indices[first as usize..(first + count) as usize];
-            if ANY_HIT {
-                if prims
-                    .iter()
-                    .any(|&p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
-                {
-                    return true;
-                }
-            } else {
-                for &p in prims {
-                    let limit = best.t.next_up().min(ray.t_max);
-                    if let Some(h) = self.prims.intersect_prim(p, ray, limit)
-                        && Hit::is_closer(h.t, h.prim, best)
+            let count = n.leaf_count();
+            if count != 0 {
+                let first = n.leaf_first() as usize;
+                let prims = &self.prim_indices[first..first + count as usize];
+                if ANY_HIT {
+                    if prims
+                        .iter()
+                        .any(|&p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
                     {
-                        *best = h;
+                        return true;
+                    }
+                } else {
+                    for &p in prims {
+                        let limit = best.t.next_up().min(ray.t_max);
+                        if let Some(h) = self.prims.intersect_prim(p, ray, limit)
+                            && Hit::is_closer(h.t, h.prim, best)
+                        {
+                            *best = h;
+                        }
                     }
                 }
             }
             loop {
-                if depth == 0 {
+                let Some((next, entry, exit)) = stack.pop() else {
                     return false;
-                }
-                depth -= 1;
-                let (next, entry, exit) = stack[depth];
+                };
                 if !ANY_HIT && entry > best.t {
                     continue;
                 }
                 (node, t_near, t_far) = (next, entry, exit);
                 break;
             }
+        }
+    }
+}
+
+/// A traversal stack of [`STACK_SIZE`] `Copy` entries whose free slots stay
+/// uninitialized: zeroing the whole array on every call (64 packet entries are 4 KiB)
+/// cost more than the pushes of a typical coherent packet.
+pub(super) struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK_SIZE],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline]
+    pub(super) fn new() -> Stack<T> {
+        Stack {
+            items: [const { MaybeUninit::uninit() }; STACK_SIZE],
+            len: 0,
+        }
+    }
+
+    /// Panics when full (the tree's depth bounds the pushes, see [`STACK_SIZE`]).
+    #[inline]
+    pub(super) fn push(&mut self, item: T) {
+        self.items[self.len].write(item);
+        self.len += 1;
+    }
+
+    #[inline]
+    pub(super) fn pop(&mut self) -> Option<T> {
+        self.len = self.len.checked_sub(1)?;
+        // SAFETY: `push` is the only writer and raises `len` only after writing slot
+        // `len`; `pop` only lowers it. So every slot below the old `len`, this one
+        // included, holds an initialized item (`T: Copy`, so reading it twice is fine).
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+}
+
+/// A ray's per-axis quantities, computed once per ray and indexed by a node's axis
+/// (`axis & 3`, so the index needs no bounds check; the fourth entry is never read).
+struct RayAxes {
+    org: [f32; 4],
+    inv: [f32; 4],
+    org_abs: [f32; 4],
+    inv_abs: [f32; 4],
+    /// 1 where the direction is negative (near is the right child), else 0.
+    negative: [u32; 4],
+    /// The direction component is +0.0 or -0.0.
+    zero: [bool; 4],
+}
+
+impl RayAxes {
+    #[inline]
+    fn new(ray: &Ray, inv_dir: Vec3) -> RayAxes {
+        let four = |v: Vec3| [v.x, v.y, v.z, 0.0];
+        let d = four(ray.dir);
+        RayAxes {
+            org: four(ray.org),
+            inv: four(inv_dir),
+            org_abs: four(ray.org.abs()),
+            inv_abs: four(inv_dir.abs()),
+            negative: d.map(|c| (c < 0.0) as u32),
+            zero: d.map(|c| c == 0.0),
         }
     }
 }

@@ -25,15 +25,11 @@
 //!   and their output lanes are left as they were.
 
 use super::KdTree;
-use super::build::MAX_DEPTH;
-use super::traverse::PLANE_SLACK;
+use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::scene::Aabb;
 use crate::simd::{LANES, Mask, Vf, Vu, any, bits, mask_from_bits, none, select, splat};
 use std::cell::Cell;
-
-/// Stack entries: one per level at most, as in the scalar path.
-const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 
 thread_local! {
     static PACKET_SPLITS: Cell<u64> = const { Cell::new(0) };
@@ -178,13 +174,7 @@ impl KdTree {
         let any_zero = zero.map(|z| any(lanes & z));
         let org_abs = rays.org.map(|o| o.abs());
         let inv_abs = rays.inv_dir.map(|i| i.abs());
-        let mut stack = [Entry {
-            node: 0,
-            lanes: Mask::ZERO,
-            t_near: Vf::ZERO,
-            t_far: Vf::ZERO,
-        }; STACK_SIZE];
-        let mut depth = 0;
+        let mut stack = Stack::<Entry>::new();
         let mut node = 0u32;
         loop {
             let n = self.nodes[node as usize];
@@ -231,49 +221,49 @@ impl KdTree {
                     node = far;
                     lanes = far_lanes;
                 } else {
-                    stack[depth] = Entry {
+                    stack.push(Entry {
                         node: far,
                         lanes: far_lanes,
                         t_near: select(zero[axis], t_near, t_near.max(lo)),
                         t_far,
-                    };
-                    depth += 1;
+                    });
                     node = near;
                     lanes = near_lanes;
                     t_far = select(zero[axis], t_far, t_far.min(hi));
                 }
                 continue;
             }
-            let [first, count] = self.leaves[n.leaf_index() as usize];
-            let prims = &self.prim_indices[first as usize..(first + count) as usize];
-            if ANY_HIT {
-                let mut live = lanes;
-                for &p in prims {
-                    let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
-                    occluded |= hits.mask;
-                    live &= !hits.mask;
-                    if none(live) {
-                        break;
+            let first = n.leaf_first() as usize;
+            let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
+            // Half the leaves are empty: skip the limit's arithmetic there.
+            if !prims.is_empty() {
+                if ANY_HIT {
+                    let mut live = lanes;
+                    for &p in prims {
+                        let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
+                        occluded |= hits.mask;
+                        live &= !hits.mask;
+                        if none(live) {
+                            break;
+                        }
                     }
-                }
-                if none(active & !occluded) {
-                    return occluded;
-                }
-            } else {
-                let mut limit = next_up(best.t).min(rays.t_max);
-                for &p in prims {
-                    let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
-                    if any(best.merge(&hits, p)) {
-                        limit = next_up(best.t).min(rays.t_max);
+                    if none(active & !occluded) {
+                        return occluded;
+                    }
+                } else {
+                    let mut limit = next_up(best.t).min(rays.t_max);
+                    for &p in prims {
+                        let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
+                        if any(best.merge(&hits, p)) {
+                            limit = next_up(best.t).min(rays.t_max);
+                        }
                     }
                 }
             }
             loop {
-                if depth == 0 {
+                let Some(e) = stack.pop() else {
                     return occluded;
-                }
-                depth -= 1;
-                let e = stack[depth];
+                };
                 lanes = if ANY_HIT {
                     e.lanes & !occluded
                 } else {
