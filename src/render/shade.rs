@@ -249,6 +249,14 @@ pub(super) struct Lit<'m> {
 }
 
 impl Lit<'_> {
+    /// Whether [`Shader::mirror`] or [`Shader::refraction`] may spawn a ray here: false
+    /// lets the packet path skip both steps for a packet of matte or final-bounce hits.
+    pub(super) fn may_spawn(&self, at: Bounce, shader: &Shader) -> bool {
+        let m = self.s.material;
+        at.depth < shader.scene.settings.max_depth
+            && ((m.reflection > 0.0 && !is_glossy(m)) || m.refraction > 0.0)
+    }
+
     /// The hit's signature, given what its first mirror or refraction ray hit.
     pub(super) fn signature(&self, hit: &Hit, secondary: u32) -> HitSignature {
         HitSignature {
@@ -461,12 +469,19 @@ impl<'a> Shader<'a> {
     /// cone's directions are drawn before any of its rays is traced, so the rays can be
     /// traced together ([`Shader::closest_hits`]) and then shaded one by one in order,
     /// each ray tree drawing from the generator after the previous one's, in both modes.
+    #[inline]
     pub(super) fn glossy(&self, ray: &Ray, lit: &Lit, at: Bounce, path: &mut Path) -> Option<Vec3> {
-        let (s, m) = (&lit.s, lit.s.material);
-        let settings = &self.scene.settings;
-        if at.depth >= settings.max_depth || m.reflection <= 0.0 || !is_glossy(m) {
+        let m = lit.s.material;
+        if at.depth >= self.scene.settings.max_depth || m.reflection <= 0.0 || !is_glossy(m) {
             return None;
         }
+        Some(self.glossy_cone(ray, lit, at, path))
+    }
+
+    /// The body of [`Shader::glossy`], apart so that the test above inlines at every hit.
+    fn glossy_cone(&self, ray: &Ray, lit: &Lit, at: Bounce, path: &mut Path) -> Vec3 {
+        let (s, m) = (&lit.s, lit.s.material);
+        let settings = &self.scene.settings;
         let axis = self.mirror_direction(ray.dir, s);
         let origin = s.p + s.ng * lit.epsilon;
         let count = scaled_count(settings.glossy_samples, at.budget);
@@ -490,7 +505,7 @@ impl<'a> Shader<'a> {
                 sum += self.finish(r, hit, next, path).0;
             }
         }
-        Some(s.albedo * (m.reflection / count as f32) * sum)
+        s.albedo * (m.reflection / count as f32) * sum
     }
 
     /// The mirror ray of a lit hit, when its material is a (non-glossy) mirror and the

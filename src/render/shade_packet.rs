@@ -130,8 +130,13 @@ impl<'a> Shader<'a> {
             lit[i] = Some((hit, l));
         }
         let mut secondary = [NO_HIT; LANES];
+        let spawning = (0..LANES).any(|i| {
+            lit[i]
+                .as_ref()
+                .is_some_and(|(_, l)| l.may_spawn(at[i], self))
+        });
         let steps: [SpawnStep<'a>; 2] = [Self::mirror, Self::refraction];
-        for spawn in steps {
+        for spawn in steps.into_iter().filter(|_| spawning) {
             let spawns = std::array::from_fn(|i| match (&rays[i], &lit[i]) {
                 (Some(ray), Some((_, l))) => spawn(self, ray, l, at[i], counts),
                 _ => None,

@@ -7,13 +7,20 @@
 //!   start, then primitive id. The events are sorted once, at the root.
 //! - A node sweeps its three sorted lists once to price every candidate plane with the
 //!   surface area heuristic (planar primitives go to the cheaper side), classifies its
-//!   primitives left, right or both, and splits its lists by filtering; only the
-//!   straddling primitives get new events, which are sorted (few) and merged in.
-//! - Perfect splits: a straddling triangle is tested against each child box with
-//!   Akenine-Moller's separating-axis test and clipped to it (Sutherland-Hodgman), so its
-//!   events are the bounds of its part inside the child. Spheres use the squared-distance
-//!   test, boxes their intersection with the child. Clipped bounds are widened by a few
-//!   ulps where clipping rounded, so a primitive is never left out of a cell it touches.
+//!   primitives left, right or both in one pass over the split axis's events, and splits
+//!   its lists by filtering; only the straddling primitives get new events, which are
+//!   sorted (few) and merged in during the filtering.
+//! - Memory: the children's lists go into per-depth buffers that only grow (a node at
+//!   depth d writes into `levels[d]`, which stay put while the left subtree is built
+//!   below them), and the per-node scratch is per thread, so a node allocates nothing
+//!   once the buffers have their size.
+//! - Perfect splits: a straddling triangle is clipped (Sutherland-Hodgman) to the node's
+//!   cell, only by the faces that cut its bounds, and that polygon is cut by the split
+//!   plane for each child, so its events are the bounds of its part inside the child;
+//!   when clipping leaves nothing, Akenine-Moller's separating-axis test decides. Spheres
+//!   use the squared-distance test, boxes their intersection with the child. Clipped
+//!   bounds are widened by a few ulps where clipping rounded, so a primitive is never
+//!   left out of a cell it touches.
 //! - Degenerate triangles (which no ray can hit) and non-finite primitives are left out;
 //!   ids never change. Planes are never in the tree.
 //! - Nodes are laid out depth first: a node's two children are allocated as a pair, then
