@@ -339,6 +339,53 @@ fn bench_without_the_shared_scenes_says_where_they_belong() {
 }
 
 #[test]
+fn bench_cost_flags_change_the_tree_not_the_hits() {
+    let dir = scratch("costs");
+    let run = |kt: &str| {
+        let json = dir.join(format!("kt{kt}.json"));
+        ok(&raypack(&[
+            "bench",
+            "spd:tetra:4",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--repeat",
+            "1",
+            "--threads",
+            "1",
+            "--traversal-cost",
+            kt,
+            "--json",
+            s(&json),
+        ]));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(v["sah_costs"][0].as_f64(), kt.parse().ok());
+        v["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["checksum"].as_str().unwrap().to_string())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run("5"), run("60"));
+    for bad in [
+        ["--empty-bonus", "1"],
+        ["--traversal-cost", "-1"],
+        ["--intersection-cost", "0"],
+        ["--traversal-cost", "NaN"],
+    ] {
+        let flag = format!("{}={}", bad[0], bad[1]);
+        let out = raypack(&["bench", "spd:tetra:1", &flag]);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(bad[0]), "{bad:?}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn spd_scenes_export_to_obj() {
     let dir = scratch("obj");
     let obj = dir.join("rings.obj");

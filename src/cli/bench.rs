@@ -10,7 +10,7 @@
 use super::{BadInput, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
-use raypack::accel::kdtree::KdTree;
+use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
 use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
@@ -24,9 +24,9 @@ pub type BenchAccel = KdTree;
 
 /// Builds the accelerator of `geometry` (on the global rayon pool: every core unless
 /// `RAYON_NUM_THREADS` says otherwise); returns it and the build time in seconds.
-pub fn build_accel(geometry: &Geometry) -> (BenchAccel, f64) {
+pub fn build_accel(geometry: &Geometry, params: &BuildParams) -> (BenchAccel, f64) {
     let start = Instant::now();
-    let accel = KdTree::build(geometry);
+    let accel = KdTree::build_with(geometry, params);
     (accel, start.elapsed().as_secs_f64())
 }
 
@@ -35,8 +35,9 @@ pub fn prepare(
     scene: &BenchScene,
     width: u32,
     height: u32,
+    params: &BuildParams,
 ) -> anyhow::Result<(BenchAccel, f64, StandardSets)> {
-    let (accel, build_seconds) = build_accel(&scene.geometry);
+    let (accel, build_seconds) = build_accel(&scene.geometry, params);
     let sets = standard::standard_sets(&accel, &scene.geometry, &scene.view, width, height, None)?;
     Ok((accel, build_seconds, sets))
 }
@@ -73,6 +74,8 @@ pub struct Args {
     /// Also write the results as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub tree: super::TreeArgs,
 }
 
 #[derive(Serialize, Debug)]
@@ -103,6 +106,8 @@ pub struct Report {
     pub spheres: usize,
     pub primitives: u32,
     pub build_seconds: f64,
+    /// The SAH costs the tree was built with: `[K_T, K_I, empty bonus]`.
+    pub sah_costs: [f32; 3],
     pub width: u32,
     pub height: u32,
     pub light: [f64; 3],
@@ -229,7 +234,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let scene = load_scene(&args.scene)?;
-    let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height)?;
+    let (accel, build_seconds, mut sets) =
+        prepare(&scene, args.width, args.height, &args.tree.params()?)?;
     if let Some(dir) = &args.rays {
         for name in &args.sets {
             let set = rayset::read_rays(&dir.join(format!("{name}.rays")))?;
@@ -242,11 +248,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("ray sets read from {}", dir.display());
     }
     println!(
-        "raypack bench {}: {} triangles, {} spheres; {} built in {:.3} s",
+        "raypack bench {}: {} triangles, {} spheres; {} (K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
         args.scene,
         scene.geometry.triangles.len(),
         scene.geometry.spheres.len(),
         ACCEL_NAME,
+        args.tree.traversal_cost,
+        args.tree.intersection_cost,
+        args.tree.empty_bonus,
         build_seconds
     );
     println!(
@@ -333,6 +342,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             spheres: scene.geometry.spheres.len(),
             primitives: scene.geometry.prim_count(),
             build_seconds,
+            sah_costs: [
+                args.tree.traversal_cost,
+                args.tree.intersection_cost,
+                args.tree.empty_bonus,
+            ],
             width: sets.primary.width,
             height: sets.primary.height,
             light: sets.light.to_array(),

@@ -21,15 +21,8 @@ pub struct Args {
     /// Builds to time; the median is reported.
     #[arg(long, default_value_t = 1)]
     pub repeat: usize,
-    /// Cost of a traversal step in the SAH (K_T).
-    #[arg(long, default_value_t = BuildParams::default().traversal_cost)]
-    pub traversal_cost: f32,
-    /// Cost of a primitive test in the SAH (K_I).
-    #[arg(long, default_value_t = BuildParams::default().intersection_cost)]
-    pub intersection_cost: f32,
-    /// Share of the cost forgiven for cutting off empty space.
-    #[arg(long, default_value_t = BuildParams::default().empty_bonus)]
-    pub empty_bonus: f32,
+    #[command(flatten)]
+    pub tree: super::TreeArgs,
     /// Also trace the camera's 1024x768 primary rays on one thread (scalar path).
     #[arg(long)]
     pub primary: bool,
@@ -46,10 +39,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let params = BuildParams {
         parallel: threads > 1,
-        traversal_cost: args.traversal_cost,
-        intersection_cost: args.intersection_cost,
-        empty_bonus: args.empty_bonus,
-        ..BuildParams::default()
+        ..args.tree.params()?
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)

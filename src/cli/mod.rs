@@ -7,6 +7,7 @@ pub mod render;
 pub mod trace;
 
 use clap::{Parser, Subcommand};
+use raypack::accel::kdtree::BuildParams;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -40,6 +41,44 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(a) => info::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Rays(a) => rays::run(a),
+    }
+}
+
+/// The SAH cost model of the kd-tree build, shared by `info` and `bench` so a tree's
+/// shape and its rays per second can be compared for the same costs.
+#[derive(clap::Args, Debug, Clone, Copy)]
+pub struct TreeArgs {
+    /// Cost of a traversal step in the SAH (K_T).
+    #[arg(long, default_value_t = BuildParams::default().traversal_cost)]
+    pub traversal_cost: f32,
+    /// Cost of a primitive test in the SAH (K_I).
+    #[arg(long, default_value_t = BuildParams::default().intersection_cost)]
+    pub intersection_cost: f32,
+    /// Share of the cost forgiven for cutting off empty space.
+    #[arg(long, default_value_t = BuildParams::default().empty_bonus)]
+    pub empty_bonus: f32,
+}
+
+impl TreeArgs {
+    /// Build parameters with these costs; the rest are the defaults.
+    pub fn params(&self) -> anyhow::Result<BuildParams> {
+        let ok = |x: f32| x.is_finite() && x >= 0.0;
+        if !(ok(self.traversal_cost) && ok(self.intersection_cost) && self.intersection_cost > 0.0)
+        {
+            return Err(BadInput(
+                "--traversal-cost and --intersection-cost must be finite, >= 0 and K_I > 0".into(),
+            )
+            .into());
+        }
+        if !(0.0..1.0).contains(&self.empty_bonus) {
+            return Err(BadInput("--empty-bonus must be in [0, 1)".into()).into());
+        }
+        Ok(BuildParams {
+            traversal_cost: self.traversal_cost,
+            intersection_cost: self.intersection_cost,
+            empty_bonus: self.empty_bonus,
+            ..BuildParams::default()
+        })
     }
 }
 

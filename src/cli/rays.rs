@@ -55,7 +55,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let Some(out) = &args.out else {
         return Ok(());
     };
-    let (accel, build_seconds, sets) = prepare(&scene, args.width, args.height)?;
+    let (accel, build_seconds, sets) =
+        prepare(&scene, args.width, args.height, &Default::default())?;
     let (set, hits) = match args.set.as_str() {
         "primary" => (&sets.primary, Some(&sets.primary_hits)),
         "shadow" => (&sets.shadow, None),

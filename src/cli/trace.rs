@@ -23,7 +23,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let rays = rayset::read_rays(&args.rays)?;
     let scene = load_scene(&args.scene)?;
-    let (accel, build_seconds) = build_accel(&scene.geometry);
+    let (accel, build_seconds) = build_accel(&scene.geometry, &Default::default());
     let start = std::time::Instant::now();
     let hits = rayset::trace::trace_hits(&accel, &rays.rays, args.mode);
     let seconds = start.elapsed().as_secs_f64();
