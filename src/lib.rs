@@ -23,11 +23,13 @@ pub mod scene;
 pub mod simd;
 
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
-/// textures, ray files), which the CLI reports with exit code 2.
+/// textures, ray files), which the CLI reports with exit code 2. Failing to write an
+/// output is not one: the input was fine, the disk or the path was not.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
     e.is::<scene::SceneError>()
         || e.is::<scene::ObjError>()
         || e.is::<scene::TextureError>()
-        || e.is::<rayset::RaySetError>()
+        || e.downcast_ref::<rayset::RaySetError>()
+            .is_some_and(rayset::RaySetError::is_input)
         || e.is::<rayset::scenes::BenchSceneError>()
 }

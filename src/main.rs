@@ -1,7 +1,8 @@
 //! The `raypack` command: parse, dispatch, map errors to exit codes.
 //!
 //! Exit codes: 0 success, 2 bad input (the message names file, line and key), 1 any
-//! other failure. The error chain is printed once, as ripgrep does.
+//! other failure, such as an output that cannot be written. The error chain is printed
+//! once, as ripgrep does: each error's message leaves its cause to the chain.
 
 mod cli;
 

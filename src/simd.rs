@@ -1,6 +1,6 @@
 //! The one place that sets the SIMD width.
 //!
-//! Every packet kernel is written against these aliases and helpers, so changing
+//! Every packet kernel is written against these aliases and functions, so changing
 //! the lane count (or the backend) means changing this file only. No other file
 //! names `wide`. Inspired by Embree's `vfloat<N>` and its single `VSIZEX`.
 

@@ -220,6 +220,13 @@ scene_case!(
     ["camera.target", "equals `eye`"]
 );
 scene_case!(
+    eye_too_far_from_target_overflows,
+    "eye_far_from_target.toml",
+    SceneError::Invalid { ref message, .. } if !message.contains("equals"),
+    3,
+    ["camera.target", "too far from `eye`", "overflows", "not finite"]
+);
+scene_case!(
     missing_camera,
     "missing_camera.toml",
     SceneError::Invalid { .. },

@@ -258,6 +258,12 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert!(v["machine"]["cores"].as_u64().unwrap() >= 1);
     assert!(!v["machine"]["cpu"].as_str().unwrap().is_empty());
+    let simd = v["machine"]["simd"]
+        .as_str()
+        .expect("machine.simd is a string");
+    assert!(!simd.is_empty(), "machine.simd is empty");
+    assert!(v["triangles"].is_number(), "triangles: {}", v["triangles"]);
+    assert_eq!(v["triangles"], 2, "the floor of balls:2");
     assert_eq!(v["scene"], "spd:balls:2");
     assert_eq!(v["spheres"], 91);
     assert!(v["build_seconds"].as_f64().unwrap() >= 0.0);
@@ -402,4 +408,170 @@ fn spd_scenes_export_to_obj() {
     // One ring: 30 spheres of 6 segments x 3 bands, 30 six-sided tubes, the floor.
     assert_eq!(faces, 30 * 6 * 3 + 30 * 12 + 2);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The OS error's text, which a message must carry exactly once.
+const NOT_FOUND: &str = "No such file or directory";
+
+/// Asserts exit code `code` and a one-line message containing `want` and the OS error
+/// text exactly once.
+fn fails_with(out: &Output, code: i32, want: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "{err}");
+    assert!(err.contains(want), "`{err}` lacks `{want}`");
+    assert_eq!(err.matches(NOT_FOUND).count(), 1, "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn failing_to_write_an_output_exits_1_naming_the_os_error_once() {
+    let dir = scratch("write");
+    let rays = dir.join("primary.rays");
+    write_set("primary", &rays, 16, 16);
+    let missing = dir.join("missing");
+    let out_in = |name: &str| missing.join(name).to_str().unwrap().to_string();
+    let size = ["--width", "16", "--height", "16"];
+
+    let mut args = vec!["rays", SCENE, "--out"];
+    let target = out_in("x.rays");
+    args.push(&target);
+    args.extend(size);
+    fails_with(&raypack(&args), 1, "x.rays: cannot write");
+
+    let target = out_in("x.hits");
+    let mut args = vec!["rays", SCENE, "--out", s(&rays), "--hits", &target];
+    args.extend(size);
+    fails_with(&raypack(&args), 1, "x.hits: cannot write");
+
+    let target = out_in("x.obj");
+    fails_with(
+        &raypack(&["rays", SCENE, "--obj", &target]),
+        1,
+        "x.obj: cannot write",
+    );
+
+    let target = out_in("x.hits");
+    fails_with(
+        &raypack(&["trace", SCENE, "--rays", s(&rays), "--out", &target]),
+        1,
+        "x.hits: cannot write",
+    );
+
+    let target = out_in("x.json");
+    let mut args = vec![
+        "bench",
+        SCENE,
+        "--json",
+        &target,
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+    ];
+    args.extend(size);
+    fails_with(&raypack(&args), 1, "x.json: cannot write");
+
+    // Failing to read the user's input stays bad input, and names the OS error once too.
+    let target = dir.join("o.hits");
+    fails_with(
+        &raypack(&[
+            "trace",
+            SCENE,
+            "--rays",
+            &out_in("in.rays"),
+            "--out",
+            s(&target),
+        ]),
+        2,
+        "in.rays: cannot read",
+    );
+    assert!(!missing.exists() && !target.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn image_sizes_past_the_scene_file_limit_are_bad_input() {
+    let dir = scratch("huge");
+    let rays = dir.join("x.rays");
+    for (args, want) in [
+        (
+            vec![
+                "bench",
+                "spd:tetra:2",
+                "--width",
+                "1048576",
+                "--height",
+                "1048576",
+            ],
+            "--width 1048576 must be between 1 and 16384",
+        ),
+        (
+            vec![
+                "bench",
+                "spd:tetra:2",
+                "--width",
+                "16384",
+                "--height",
+                "16384",
+            ],
+            "--width 16384 and --height 16384 make 268435456 pixels, more than the limit of 67108864",
+        ),
+        (
+            vec![
+                "rays",
+                "spd:tetra:2",
+                "--width",
+                "16384",
+                "--height",
+                "16384",
+                "--out",
+                s(&rays),
+            ],
+            "--width 16384 and --height 16384 make 268435456 pixels, more than the limit of 67108864",
+        ),
+        (
+            vec!["rays", "spd:tetra:2", "--height", "0", "--out", s(&rays)],
+            "--height 0 must be between 1 and 16384",
+        ),
+    ] {
+        let out = raypack(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: `{err}` lacks `{want}`");
+        assert!(!rays.exists(), "{args:?}: a ray file was written");
+    }
+    // The limit itself is the scene files' (8192 x 8192 pixels): the library refuses
+    // a larger primary set too.
+    let view = spd::generate_spec("tetra:1").unwrap().view;
+    assert_eq!(raypack::scene::file::MAX_PIXELS, 8192 * 8192);
+    let e = rayset::standard::primary(&view, 16384, 8192 + 16).unwrap_err();
+    assert!(matches!(e, RaySetError::BadParameter { .. }), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn spd_sizes_too_large_are_out_of_range_not_malformed() {
+    for (scene, want) in [
+        (
+            "spd:tree:99999999999",
+            "size 99999999999 is out of range: tree takes sizes 0 to 21",
+        ),
+        (
+            "spd:gears:2147483648",
+            "size 2147483648 is out of range: gears takes sizes 0 to 322",
+        ),
+        (
+            "spd:tetra:4294967295",
+            "size 4294967295 is out of range: tetra takes sizes 0 to 11",
+        ),
+        ("spd:tree:1x", "size `1x` is not a whole number"),
+    ] {
+        let out = raypack(&["bench", scene]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{scene}: {err}");
+        assert!(err.contains(want), "{scene}: `{err}` lacks `{want}`");
+        if !want.contains("whole") {
+            assert!(!err.contains("whole number"), "{scene}: {err}");
+        }
+    }
 }

@@ -146,15 +146,82 @@ fn bad_arguments_exit_with_2_and_write_nothing() {
         "--height",
         "8",
     ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("x.png: cannot write the image"), "{stderr}");
+    // The chain names the OS error once, not once per layer.
     assert_eq!(
-        out.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        stderr.matches("No such file or directory").count(),
+        1,
+        "{stderr}"
     );
     assert!(
         std::fs::read_dir(&dir).unwrap().next().is_none(),
         "files left behind"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn size_overrides_are_held_to_the_scene_file_pixel_limit() {
+    let dir = scratch("huge");
+    let scene = shipped_scenes().pop().unwrap();
+    let png = dir.join("x.png");
+    for (extra, want) in [
+        (
+            vec!["--width", "16384", "--height", "16384"],
+            "--width 16384 and --height 16384 make 268435456 pixels, more than the limit of 67108864",
+        ),
+        (
+            vec!["--width", "16384", "--height", "8193"],
+            "more than the limit of 67108864",
+        ),
+        (
+            vec!["--height", "16385"],
+            "--height 16385 must be between 1 and 16384",
+        ),
+    ] {
+        let mut args = vec!["render", s(&scene), "-o", s(&png)];
+        args.extend(&extra);
+        let out = raypack(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(
+            stderr.contains(want),
+            "{extra:?}: `{stderr}` lacks `{want}`"
+        );
+        assert!(!png.exists(), "{extra:?}: an image was written");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn output_names_other_than_png_and_pfm_are_refused_before_rendering() {
+    let dir = scratch("ext");
+    let scene = shipped_scenes().pop().unwrap();
+    let size = ["--width", "8", "--height", "8"];
+    for name in ["x.exr", "x.jpg", "x.JPEG", "x.png.tmp", "x"] {
+        let path = dir.join(name);
+        let mut args = vec!["render", s(&scene), "-o", s(&path)];
+        args.extend(size);
+        let out = raypack(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
+        assert!(
+            stderr.contains(name) && stderr.contains(".png or .pfm"),
+            "{name}: {stderr}"
+        );
+        // Refused before the render: no summary, no file.
+        assert!(out.stdout.is_empty(), "{name}: rendered anyway");
+        assert!(!path.exists(), "{name}: written anyway");
+    }
+    // Either case of the two known extensions is accepted, and gives that format.
+    for (name, magic) in [("x.PNG", &b"\x89PNG"[..]), ("x.Pfm", &b"PF\n"[..])] {
+        let path = dir.join(name);
+        let mut args = vec!["render", s(&scene), "-o", s(&path)];
+        args.extend(size);
+        check(&raypack(&args), name);
+        assert!(std::fs::read(&path).unwrap().starts_with(magic), "{name}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -628,3 +628,33 @@ fn a_miss_has_the_background_and_no_signature() {
     assert_eq!(sig.prim, NO_HIT);
     assert_eq!(counts.total(), 1);
 }
+
+/// Adaptive anti-aliasing compares signatures, so a light's shadow edge must show in
+/// them whatever the light's index: here 32 lights see both floor points, and light 32,
+/// the 33rd, is blocked at one of them only.
+#[test]
+fn a_shadow_of_the_33rd_light_changes_the_signature() {
+    let mut scene = shadow_scene(true);
+    scene.lights = (0..32)
+        .map(|k| point(Vec3::new(20.0 + k as f32, 3.0, 20.0)))
+        .collect();
+    scene.lights.push(point(Vec3::new(0.0, 4.0, 0.0)));
+    // x = 0 is under the blocker, which hides light 32 from it; from x = 5 the ray to
+    // light 32 passes beside the blocker (at x = 2.5 at its height).
+    let (_, counts, shadowed) = shade(&scene, down_at(0.0, 0.0));
+    assert_eq!(counts.shadow, 33);
+    let (_, _, lit) = shade(&scene, down_at(5.0, 0.0));
+    let floor = scene.geometry.prim_count() - 1;
+    assert_eq!(
+        (shadowed.prim, lit.prim),
+        (floor, floor),
+        "both on the floor"
+    );
+    assert_eq!(shadowed.secondary, lit.secondary);
+    assert_ne!(shadowed.lights, lit.lights, "{shadowed:?} vs {lit:?}");
+    // Lights 0..32 are seen in full by both points: their bits are as before the fold.
+    let mut first_32 = scene.clone();
+    first_32.lights.truncate(32);
+    let (_, _, sig) = shade(&first_32, down_at(0.0, 0.0));
+    assert_eq!(sig.lights, u64::MAX);
+}

@@ -7,7 +7,7 @@
 //! Every pass folds its answers into a checksum, printed beside the rates; closest-hit
 //! sets must give the same checksum in every mode and thread count.
 
-use super::{BadInput, load_scene};
+use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
@@ -232,6 +232,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if threads.contains(&0) {
         return Err(BadInput("--threads: thread counts must be at least 1".into()).into());
     }
+
+    check_size_flags(args.width, args.height)?;
 
     let scene = load_scene(&args.scene)?;
     let (accel, build_seconds, mut sets) =

@@ -8,6 +8,7 @@ pub mod trace;
 
 use clap::{Parser, Subcommand};
 use raypack::accel::kdtree::BuildParams;
+use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -86,6 +87,70 @@ impl TreeArgs {
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct BadInput(pub String);
+
+/// One side of an image size to check, and where it came from, for the message.
+#[derive(Clone, Copy, Debug)]
+pub enum ImageSide {
+    /// Given on the command line as `flag` (`--width`, `--height`).
+    Flag { flag: &'static str, value: u32 },
+    /// The scene file's.
+    Scene { value: u32 },
+}
+
+impl ImageSide {
+    fn value(self) -> u32 {
+        match self {
+            ImageSide::Flag { value, .. } | ImageSide::Scene { value } => value,
+        }
+    }
+
+    /// `--width 640`, or `the scene's width 640` (`dimension` names the side).
+    fn describe(self, dimension: &str) -> String {
+        match self {
+            ImageSide::Flag { flag, value } => format!("{flag} {value}"),
+            ImageSide::Scene { value } => format!("the scene's {dimension} {value}"),
+        }
+    }
+}
+
+/// Holds an image size from the command line (`render`'s overrides, the primary set of
+/// `bench` and `rays`) to the limits of scene files, [`MAX_SIDE`] per side and
+/// [`MAX_PIXELS`] in all, so no flag can ask for an image a scene file may not: past
+/// them the buffers would not fit in memory and the allocation would abort the process.
+pub fn check_image_size(width: ImageSide, height: ImageSide) -> Result<(), BadInput> {
+    for (side, dimension) in [(width, "width"), (height, "height")] {
+        let v = side.value();
+        if v == 0 || v > MAX_SIDE {
+            return Err(BadInput(format!(
+                "{} must be between 1 and {MAX_SIDE}",
+                side.describe(dimension)
+            )));
+        }
+    }
+    let pixels = width.value() as u64 * height.value() as u64;
+    if pixels > MAX_PIXELS {
+        return Err(BadInput(format!(
+            "{} and {} make {pixels} pixels, more than the limit of {MAX_PIXELS}",
+            width.describe("width"),
+            height.describe("height")
+        )));
+    }
+    Ok(())
+}
+
+/// [`check_image_size`] of `--width` and `--height` (the primary set of `bench`, `rays`).
+pub fn check_size_flags(width: u32, height: u32) -> Result<(), BadInput> {
+    check_image_size(
+        ImageSide::Flag {
+            flag: "--width",
+            value: width,
+        },
+        ImageSide::Flag {
+            flag: "--height",
+            value: height,
+        },
+    )
+}
 
 /// Loads a scene argument of `bench`, `trace` or `rays` and says what was loaded.
 pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchScene> {

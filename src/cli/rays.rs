@@ -1,7 +1,7 @@
 //! `raypack rays`: writes a standard ray set of a scene (RAYS.md), or the scene itself
 //! as OBJ (procedural scenes, for other tracers).
 
-use super::{BadInput, bench::prepare, load_scene};
+use super::{BadInput, bench::prepare, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::rayset::{self, standard};
 use std::path::PathBuf;
@@ -45,6 +45,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.set
         ))
         .into());
+    }
+    if args.out.is_some() {
+        check_size_flags(args.width, args.height)?;
     }
     let scene = load_scene(&args.scene)?;
     if let Some(obj) = &args.obj {

@@ -1,27 +1,26 @@
 //! `raypack render SCENE.toml -o OUT.png [--width W --height H --spp N --threads T --seed S]`.
 //!
 //! Loads a scene file, builds its kd-tree, renders on a local rayon pool with a progress
-//! bar on stderr, writes the image (PFM when the name ends in `.pfm`, 8-bit sRGB PNG
-//! otherwise; whole or not at all) and prints the build and render times, the rays
-//! traced by kind and rays per second.
+//! bar on stderr, writes the image (PFM when the name ends in `.pfm`, 8-bit sRGB PNG when
+//! it ends in `.png`; whole or not at all) and prints the build and render times, the
+//! rays traced by kind and rays per second.
 
-use super::BadInput;
+use super::{BadInput, ImageSide, check_image_size};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use raypack::accel::kdtree::KdTree;
+use raypack::render::film::ImageFormat;
 use raypack::render::{Mode, RayCounts, render, tiles};
 use raypack::scene::{AntiAlias, Scene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The largest image side accepted from the command line.
-const MAX_SIDE: u32 = 16_384;
-
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Scene file (TOML; see scenes/README.md).
     pub scene: PathBuf,
-    /// Output image: PFM (32-bit float) when it ends in .pfm, 8-bit sRGB PNG otherwise.
+    /// Output image: PFM (32-bit float) when it ends in .pfm, 8-bit sRGB PNG when it ends
+    /// in .png (any case); other names are refused.
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
     /// Image width in pixels (default: the scene's).
@@ -64,6 +63,15 @@ impl From<ModeArg> for Mode {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Checked first: a name the film cannot be written under would only fail after the
+    // whole render.
+    if ImageFormat::from_path(&args.output).is_none() {
+        return Err(BadInput(format!(
+            "-o {}: unknown image format; the name must end in .png or .pfm",
+            args.output.display()
+        ))
+        .into());
+    }
     let (mut scene, warnings) = raypack::scene::file::load_with_warnings(&args.scene)?;
     super::warn(&warnings);
     apply_overrides(&mut scene, &args)?;
@@ -93,10 +101,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let render_seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    rendered
-        .film
-        .write(&args.output)
-        .with_context(|| format!("cannot write the image {}", args.output.display()))?;
+    // The film's error names the file and the failure; its source is the OS error.
+    rendered.film.write(&args.output)?;
     print!(
         "{}",
         summary(
@@ -112,22 +118,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Applies the command line's size, sampling and seed to the scene's settings.
+/// Applies the command line's size, sampling and seed to the scene's settings. The size
+/// that results is held to the limits of scene files ([`check_image_size`]).
 fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
     let s = &mut scene.settings;
-    for (name, value, field) in [
-        ("--width", args.width, &mut s.width),
-        ("--height", args.height, &mut s.height),
-    ] {
-        if let Some(v) = value {
-            if v == 0 || v > MAX_SIDE {
-                return Err(BadInput(format!(
-                    "{name} must be between 1 and {MAX_SIDE}, not {v}"
-                )));
-            }
-            *field = v;
-        }
-    }
+    let side = |flag: &'static str, given: Option<u32>, scene: u32| match given {
+        Some(value) => ImageSide::Flag { flag, value },
+        None => ImageSide::Scene { value: scene },
+    };
+    check_image_size(
+        side("--width", args.width, s.width),
+        side("--height", args.height, s.height),
+    )?;
+    s.width = args.width.unwrap_or(s.width);
+    s.height = args.height.unwrap_or(s.height);
     if let Some(spp) = args.spp {
         let n = (spp as f64).sqrt().round() as u32;
         if spp == 0 || n * n != spp || n > 16 {

@@ -49,13 +49,21 @@ const HIT_FIELDS: [&str; 4] = ["t", "prim", "u", "v"];
 const DIR_LENGTH_TOLERANCE: f32 = 1e-3;
 
 /// What can go wrong reading, writing or generating ray sets. Every variant names the
-/// file (or the parameter) and the field.
+/// file (or the parameter) and the field. The operating system's error is the source of
+/// [`RaySetError::Read`] and [`RaySetError::Write`], not part of their message, so the
+/// CLI's chain prints it once.
 #[derive(Debug, thiserror::Error)]
 pub enum RaySetError {
-    #[error("{}: {source}", path.display())]
-    Io {
+    /// A file the user named cannot be read: bad input.
+    #[error("{}: cannot read", path.display())]
+    Read {
         path: PathBuf,
-        #[source]
+        source: std::io::Error,
+    },
+    /// An output cannot be written (missing directory, full disk): not the input's fault.
+    #[error("{}: cannot write", path.display())]
+    Write {
+        path: PathBuf,
         source: std::io::Error,
     },
     #[error("{}: bad magic {found:?} (expected {expected:?})", path.display())]
@@ -85,6 +93,14 @@ pub enum RaySetError {
     },
     #[error("{what}: {reason}")]
     BadParameter { what: String, reason: String },
+}
+
+impl RaySetError {
+    /// True unless an output could not be written: everything else is about what the
+    /// user gave (a file, a camera, an image size), which the CLI reports with exit code 2.
+    pub fn is_input(&self) -> bool {
+        !matches!(self, RaySetError::Write { .. })
+    }
 }
 
 /// A set of rays; `width`, `height` are the image size of an image set in packet order,
@@ -152,8 +168,8 @@ pub fn pixel_packet_index(x: u32, y: u32, width: u32) -> usize {
     tile * 256 + quad * 4 + lane
 }
 
-fn io_error(path: &Path, source: std::io::Error) -> RaySetError {
-    RaySetError::Io {
+fn read_error(path: &Path, source: std::io::Error) -> RaySetError {
+    RaySetError::Read {
         path: path.to_path_buf(),
         source,
     }
@@ -321,13 +337,13 @@ pub fn parse_hits(path: &Path, bytes: &[u8]) -> Result<Vec<Hit>, RaySetError> {
 
 /// Reads a rays file.
 pub fn read_rays(path: &Path) -> Result<RaySet, RaySetError> {
-    let bytes = std::fs::read(path).map_err(|e| io_error(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| read_error(path, e))?;
     parse_rays(path, &bytes)
 }
 
 /// Reads a hits file.
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>, RaySetError> {
-    let bytes = std::fs::read(path).map_err(|e| io_error(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| read_error(path, e))?;
     parse_hits(path, &bytes)
 }
 
@@ -393,7 +409,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RaySetError> {
         .and_then(|()| std::fs::rename(&tmp, path));
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        io_error(path, e)
+        RaySetError::Write {
+            path: path.to_path_buf(),
+            source: e,
+        }
     })
 }
 
@@ -515,8 +534,15 @@ mod tests {
         };
         assert!(write_rays(&path, &bad).is_err());
         assert_eq!(read_rays(&path).unwrap(), set);
-        // Writing into a missing directory fails and leaves no temporary file behind.
-        assert!(write_hits(&dir.join("missing/a.hits"), &[Hit::MISS]).is_err());
+        // Writing into a missing directory fails, is not bad input, and leaves no
+        // temporary file behind.
+        let e = write_hits(&dir.join("missing/a.hits"), &[Hit::MISS]).unwrap_err();
+        assert!(
+            matches!(e, RaySetError::Write { .. }) && !e.is_input(),
+            "{e}"
+        );
+        let e = read_rays(&dir.join("missing.rays")).unwrap_err();
+        assert!(matches!(e, RaySetError::Read { .. }) && e.is_input(), "{e}");
         let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(leftovers.len(), 1);
         std::fs::remove_dir_all(&dir).unwrap();

@@ -24,6 +24,7 @@
 use super::{RaySet, RaySetError, TILE, packet_pixel};
 use crate::accel::Accel;
 use crate::ray::{Hit, Ray};
+use crate::scene::file::MAX_PIXELS;
 use crate::scene::{Camera, Geometry, PrimRef};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -105,7 +106,8 @@ fn to_ray(o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Ray {
     Ray::new(o.as_vec3(), d.as_vec3(), t_min as f32, t_max as f32)
 }
 
-/// The `primary` set: the camera's rays at `width x height` in packet order.
+/// The `primary` set: the camera's rays at `width x height` in packet order, at most
+/// [`MAX_PIXELS`] of them (the limit of scene files).
 pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetError> {
     if width == 0 || height == 0 || !width.is_multiple_of(TILE) || !height.is_multiple_of(TILE) {
         return Err(RaySetError::BadParameter {
@@ -113,6 +115,12 @@ pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetErr
             reason: format!(
                 "width and height must be positive multiples of {TILE} (packet order uses {TILE}x{TILE} tiles)"
             ),
+        });
+    }
+    if width as u64 * height as u64 > MAX_PIXELS {
+        return Err(RaySetError::BadParameter {
+            what: format!("image size {width}x{height}"),
+            reason: format!("more than {MAX_PIXELS} pixels, the limit of scene files"),
         });
     }
     let f = view.frame()?;

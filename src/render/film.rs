@@ -9,20 +9,53 @@ use std::fs::File;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
+/// What can go wrong writing or reading a film. The underlying error is the `source`,
+/// never part of the message, so a chain printed with `{:#}` names it once.
 #[derive(Debug, thiserror::Error)]
 pub enum FilmError {
-    #[error("{path}: {source}")]
-    Io {
+    #[error("{}: cannot read the image", path.display())]
+    Read {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}: PNG encoding failed: {source}")]
+    #[error("{}: cannot write the image", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: PNG encoding failed", path.display())]
     Png {
         path: PathBuf,
         source: image::ImageError,
     },
-    #[error("{path}: not a colour PFM file: {reason}")]
+    #[error("{}: not a colour PFM file: {reason}", path.display())]
     BadPfm { path: PathBuf, reason: String },
+    #[error("{}: unknown image format (the name must end in .png or .pfm)", path.display())]
+    UnknownFormat { path: PathBuf },
+}
+
+/// The image formats a film is written in, chosen by the output's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit sRGB.
+    Png,
+    /// 32-bit float, bit-exact.
+    Pfm,
+}
+
+impl ImageFormat {
+    /// The format named by `path`'s extension (`.png` or `.pfm`, any case), or `None`:
+    /// writing PNG bytes under any other name (`.jpg`, `.exr`) would mislabel the file.
+    pub fn from_path(path: &Path) -> Option<ImageFormat> {
+        let ext = path.extension()?;
+        if ext.eq_ignore_ascii_case("png") {
+            Some(ImageFormat::Png)
+        } else if ext.eq_ignore_ascii_case("pfm") {
+            Some(ImageFormat::Pfm)
+        } else {
+            None
+        }
+    }
 }
 
 /// A `width x height` image of linear RGB, row 0 at the top.
@@ -72,15 +105,15 @@ impl Film {
             .collect()
     }
 
-    /// PFM when `path` ends in `.pfm` (any case), PNG otherwise.
+    /// PFM when `path` ends in `.pfm`, PNG when it ends in `.png` (any case); any other
+    /// name is refused before anything is written ([`ImageFormat::from_path`]).
     pub fn write(&self, path: &Path) -> Result<(), FilmError> {
-        let pfm = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("pfm"));
-        if pfm {
-            self.write_pfm(path)
-        } else {
-            self.write_png(path)
+        match ImageFormat::from_path(path) {
+            Some(ImageFormat::Pfm) => self.write_pfm(path),
+            Some(ImageFormat::Png) => self.write_png(path),
+            None => Err(FilmError::UnknownFormat {
+                path: path.to_owned(),
+            }),
         }
     }
 
@@ -106,7 +139,7 @@ impl Film {
     /// then rows of RGB f32 from the bottom row up.
     pub fn write_pfm(&self, path: &Path) -> Result<(), FilmError> {
         write_atomic(path, |w| {
-            let io = |source| FilmError::Io {
+            let io = |source| FilmError::Write {
                 path: path.to_owned(),
                 source,
             };
@@ -131,7 +164,7 @@ impl Film {
         let mut bytes = Vec::new();
         File::open(path)
             .and_then(|mut f| f.read_to_end(&mut bytes))
-            .map_err(|source| FilmError::Io {
+            .map_err(|source| FilmError::Read {
                 path: path.to_owned(),
                 source,
             })?;
@@ -188,7 +221,7 @@ fn write_atomic(
     path: &Path,
     f: impl FnOnce(&mut BufWriter<File>) -> Result<(), FilmError>,
 ) -> Result<(), FilmError> {
-    let io = |source| FilmError::Io {
+    let io = |source| FilmError::Write {
         path: path.to_owned(),
         source,
     };
@@ -272,8 +305,13 @@ mod tests {
         let dir = temp_dir("fail");
         let target = dir.join("missing-dir").join("x.png");
         let err = Film::new(1, 1).write(&target).unwrap_err();
-        assert!(matches!(err, FilmError::Io { .. }), "{err}");
+        assert!(matches!(err, FilmError::Write { .. }), "{err}");
         assert!(!target.exists());
+        // Names that are neither .png nor .pfm are refused, not written as PNG.
+        for name in ["x.jpg", "x.EXR", "x"] {
+            let err = Film::new(1, 1).write(&dir.join(name)).unwrap_err();
+            assert!(matches!(err, FilmError::UnknownFormat { .. }), "{err}");
+        }
         assert!(std::fs::read_dir(&dir).unwrap().next().is_none());
         std::fs::remove_dir_all(&dir).unwrap();
     }

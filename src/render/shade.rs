@@ -143,8 +143,9 @@ impl AddAssign for RayCounts {
 pub struct HitSignature {
     /// The primitive hit, or [`NO_HIT`].
     pub prim: u32,
-    /// Two bits per light (lights 0..32): bit `2k` when some sample of light `k` is
-    /// visible, bit `2k + 1` when all are, so umbra, penumbra and light all differ.
+    /// Two bits per light: bit `2k` when some sample of light `k` is visible, bit
+    /// `2k + 1` when all are, so umbra, penumbra and light all differ. Lights from 32 on
+    /// are folded in by XOR onto the bits of light `k % 32` ([`fold_light`]).
     pub lights: u64,
     /// The primitive hit by the first mirror or refraction ray, or [`NO_HIT`].
     pub secondary: u32,
@@ -450,10 +451,7 @@ impl<'a> Shader<'a> {
                 colour += light.color()
                     * (s.albedo * (m.diffuse * diffuse * inv)
                         + Vec3::splat(m.specular * specular * inv));
-                if k < 32 {
-                    let all = visible == count;
-                    light_bits |= ((visible > 0) as u64 | ((all as u64) << 1)) << (2 * k);
-                }
+                light_bits = fold_light(light_bits, k, visible, count);
             }
         }
         Lit {
@@ -671,6 +669,20 @@ pub fn spherical_uv(s: &Sphere, p: Vec3) -> Vec2 {
     Vec2::new(u, v)
 }
 
+/// Adds light `k`'s visibility (`visible` of `count` samples unblocked) to the light bits
+/// of a [`HitSignature`]: its two bits (`01` some, `11` all, `00` none) are XORed in at
+/// bits `2 (k % 32)`. For lights 0..32 the bits start clear, so XOR sets them exactly as
+/// the one-slot-per-light layout did (images of scenes with fewer lights do not change);
+/// past 32 lights, XOR rather than OR keeps every light counted: two points that differ
+/// in the visibility of any one light, whatever its index, differ in the signature, at
+/// the price of a collision when two lights 32 apart change the same way at once. The
+/// signature stays 64 bits however many lights the scene has.
+#[inline]
+pub fn fold_light(bits: u64, k: usize, visible: u32, count: u32) -> u64 {
+    let state = (visible > 0) as u64 | (((visible == count) as u64) << 1);
+    bits ^ (state << (2 * (k % 32)))
+}
+
 /// `max(1, round(base * budget))`: the samples a ray with this budget may spend.
 fn scaled_count(base: u32, budget: f32) -> u32 {
     ((base as f32 * budget).round() as u32).max(1)
@@ -687,6 +699,29 @@ mod tests {
         assert_eq!(scaled_count(16, 0.25), 4);
         assert_eq!(scaled_count(16, 0.25 * 0.25), 1);
         assert_eq!(scaled_count(0, 1.0), 1);
+    }
+
+    #[test]
+    fn lights_past_32_still_change_the_signature() {
+        let fold = |visible: &[(u32, u32)]| {
+            visible
+                .iter()
+                .enumerate()
+                .fold(0, |bits, (k, &(v, n))| fold_light(bits, k, v, n))
+        };
+        // 40 fully visible lights; then light 33 in umbra, then in penumbra.
+        let lit = vec![(4, 4); 40];
+        let mut umbra = lit.clone();
+        umbra[33] = (0, 4);
+        let mut penumbra = lit.clone();
+        penumbra[33] = (2, 4);
+        let (a, b, c) = (fold(&lit), fold(&umbra), fold(&penumbra));
+        assert!(a != b && b != c && a != c, "{a:#x} {b:#x} {c:#x}");
+        // Lights below 32 keep their own two bits, as before the fold.
+        let mut first = vec![(0, 1); 32];
+        first[5] = (1, 1);
+        first[31] = (1, 2);
+        assert_eq!(fold(&first), (0b11 << 10) | (0b01 << 62));
     }
 
     #[test]

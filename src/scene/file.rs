@@ -25,8 +25,10 @@ use std::path::{Path, PathBuf};
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
-/// Largest image side and pixel count a scene may ask for.
+/// Largest image side a scene may ask for.
 pub const MAX_SIDE: u32 = 16384;
+/// Largest pixel count a scene may ask for (8192 x 8192). The CLI holds its `--width`
+/// and `--height` flags and the ray sets to the same limits, so no way in asks for more.
 pub const MAX_PIXELS: u64 = 1 << 26;
 /// Limits on recursion depth and per-point sample counts.
 pub const MAX_DEPTH: u32 = 64;
@@ -556,11 +558,21 @@ impl<'a> Doc<'a> {
             return Err(self.invalid(&at("vfov"), c.key("vfov"), "must be > 0 and < 180 degrees"));
         }
         let forward = target - eye;
-        if forward.length_squared() == 0.0 || !forward.length_squared().is_finite() {
+        if forward.length_squared() == 0.0 {
             return Err(self.invalid(
                 &at("target"),
                 c.key("target"),
                 "equals `eye` (no view direction)",
+            ));
+        }
+        // Finite points can still be too far apart: from about 1.8e19 on, the square of
+        // |target - eye| passes f32::MAX, the length comes out infinite and the view
+        // direction cannot be normalized. That is not `target == eye`; say what it is.
+        if !forward.length_squared().is_finite() {
+            return Err(self.invalid(
+                &at("target"),
+                c.key("target"),
+                "is too far from `eye`: the distance between them overflows (is not finite in f32)",
             ));
         }
         let sin = forward.normalize().cross(up.normalize_or_zero()).length();

@@ -38,18 +38,29 @@ pub enum SpdError {
     UnknownKind(String),
     #[error("spd scene `{spec}`: size `{size}` is not a whole number")]
     BadSize { spec: String, size: String },
+    /// A whole number too large for the database (or for a `u32`).
     #[error(
-        "spd scene {kind}:{size}: about {count} primitives, more than the limit of {MAX_PRIMITIVES}"
+        "spd scene `{spec}`: size {size} is out of range: {kind} takes sizes 0 to {max} (at most {MAX_PRIMITIVES} primitives)"
+    )]
+    SizeOutOfRange {
+        spec: String,
+        size: String,
+        kind: &'static str,
+        max: u32,
+    },
+    #[error(
+        "spd scene {kind}:{size}: about {count} primitives, more than the limit of {MAX_PRIMITIVES} (sizes 0 to {max})"
     )]
     TooLarge {
         kind: &'static str,
         size: u32,
         count: u64,
+        max: u32,
     },
-    #[error("{}: {source}", path.display())]
-    Io {
+    /// The OBJ export cannot be written; the OS error is the source, not in the message.
+    #[error("{}: cannot write", path.display())]
+    Write {
         path: std::path::PathBuf,
-        #[source]
         source: std::io::Error,
     },
 }
@@ -108,23 +119,40 @@ impl SpdKind {
         }
     }
 
-    /// Primitives (triangles + spheres) the database has at `size`.
+    /// Primitives (triangles + spheres) the database has at `size`, saturating at
+    /// `u64::MAX`, so that the count of any size is at least the true one and the limit
+    /// check cannot be passed by a size whose count wraps around.
     pub fn primitive_count(self, size: u32) -> u64 {
         let s = size as u64;
-        let pow = |b: u64, e: u64| b.checked_pow(e as u32).unwrap_or(u64::MAX / 16);
+        let pow = |b: u64, e: u64| {
+            u32::try_from(e)
+                .ok()
+                .and_then(|e| b.checked_pow(e))
+                .unwrap_or(u64::MAX)
+        };
         match self {
             SpdKind::Balls => (pow(9, s + 1) - 1) / 8 + 2,
-            SpdKind::Gears => 576 * s * s + 2,
-            SpdKind::Mount => 2 * pow(4, s) + 4,
-            SpdKind::Rings => ring_count(size) * (30 + 360) + 2,
+            SpdKind::Gears => s.saturating_mul(s).saturating_mul(576).saturating_add(2),
+            SpdKind::Mount => pow(4, s).saturating_mul(2).saturating_add(4),
+            SpdKind::Rings => ring_count(size).saturating_mul(30 + 360).saturating_add(2),
             SpdKind::Tetra => pow(4, s + 1),
-            SpdKind::Tree => (pow(2, s + 1) - 1) * 13 + 2,
+            SpdKind::Tree => (pow(2, s + 1) - 1).saturating_mul(13).saturating_add(2),
         }
+    }
+
+    /// The largest size whose primitive count is within [`MAX_PRIMITIVES`].
+    pub fn max_size(self) -> u32 {
+        // Counts grow with the size and exceed the limit by size 323 (gears, the slowest).
+        (1..)
+            .find(|&s| self.primitive_count(s) > MAX_PRIMITIVES)
+            .map_or(0, |s| s - 1)
     }
 }
 
+/// Rings of the `rings` database at `size`: `sum j^2, j = 1..size`, in closed form.
 fn ring_count(size: u32) -> u64 {
-    (1..=size as u64).map(|j| j * j).sum()
+    let s = size as u128;
+    u64::try_from(s * (s + 1) * (2 * s + 1) / 6).unwrap_or(u64::MAX)
 }
 
 /// A generated database.
@@ -144,10 +172,24 @@ pub fn generate_spec(spec: &str) -> Result<SpdScene, SpdError> {
     };
     let kind = SpdKind::parse(name)?;
     let size = match size {
-        Some(s) => s.parse().map_err(|_| SpdError::BadSize {
-            spec: spec.to_string(),
-            size: s.to_string(),
-        })?,
+        Some(s) if s.is_empty() || !s.bytes().all(|b| b.is_ascii_digit()) => {
+            return Err(SpdError::BadSize {
+                spec: spec.to_string(),
+                size: s.to_string(),
+            });
+        }
+        // A whole number, but perhaps of more digits than any size.
+        Some(s) => match s.parse::<u32>() {
+            Ok(size) if size <= kind.max_size() => size,
+            _ => {
+                return Err(SpdError::SizeOutOfRange {
+                    spec: spec.to_string(),
+                    size: s.to_string(),
+                    kind: kind.name(),
+                    max: kind.max_size(),
+                });
+            }
+        },
         None => kind.default_size(),
     };
     generate(kind, size)
@@ -161,6 +203,7 @@ pub fn generate(kind: SpdKind, size: u32) -> Result<SpdScene, SpdError> {
             kind: kind.name(),
             size,
             count,
+            max: kind.max_size(),
         });
     }
     let mut b = Builder::default();
@@ -286,8 +329,8 @@ impl Builder {
 
 /// Two unit vectors completing `n` to an orthonormal basis.
 fn basis(n: DVec3) -> (DVec3, DVec3) {
-    let helper = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-    let t = n.cross(helper).normalize();
+    let not_parallel = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let t = n.cross(not_parallel).normalize();
     (t, n.cross(t))
 }
 
@@ -614,8 +657,8 @@ pub fn write_obj(path: &Path, g: &Geometry, rings: u32) -> Result<(), SpdError> 
         next += 8;
     }
     crate::rayset::write_atomic(path, out.as_bytes()).map_err(|e| match e {
-        crate::rayset::RaySetError::Io { path, source } => SpdError::Io { path, source },
-        other => SpdError::Io {
+        crate::rayset::RaySetError::Write { path, source } => SpdError::Write { path, source },
+        other => SpdError::Write {
             path: path.to_path_buf(),
             source: std::io::Error::other(other.to_string()),
         },
@@ -653,6 +696,39 @@ mod tests {
             generate_spec("balls:x"),
             Err(SpdError::BadSize { .. })
         ));
+        // Whole numbers too large are out of range, even those whose count would wrap
+        // around u64 or whose exponent would wrap around u32.
+        for spec in [
+            "tree:99999999999",
+            "gears:2147483648",
+            "tetra:4294967295",
+            "tetra:14",
+        ] {
+            assert!(
+                matches!(generate_spec(spec), Err(SpdError::SizeOutOfRange { .. })),
+                "{spec}"
+            );
+        }
+        for kind in SpdKind::ALL {
+            let max = kind.max_size();
+            assert!(
+                kind.primitive_count(max) <= MAX_PRIMITIVES,
+                "{}",
+                kind.name()
+            );
+            assert!(
+                kind.primitive_count(max + 1) > MAX_PRIMITIVES,
+                "{}",
+                kind.name()
+            );
+            assert!(kind.default_size() <= max, "{}", kind.name());
+            assert!(
+                kind.primitive_count(u32::MAX) > MAX_PRIMITIVES,
+                "{}",
+                kind.name()
+            );
+        }
+        assert_eq!(ring_count(1000), (1..=1000u64).map(|j| j * j).sum::<u64>());
         assert_eq!(
             generate_spec("sphereflake:1")
                 .unwrap()

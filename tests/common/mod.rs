@@ -1,4 +1,4 @@
-//! Helpers shared by the integration tests: the benchmark scenes of ../shared/scenes
+//! Utilities shared by the integration tests: the benchmark scenes of ../shared/scenes
 //! (a minimal OBJ reader for positions and faces, and the cameras), and ray sets.
 
 #![allow(dead_code)]
