@@ -172,8 +172,11 @@ impl KdTree {
         let negative = rays.dir.map(|d| any(lanes & d.simd_lt(Vf::ZERO)));
         let zero = rays.dir.map(|d| d.simd_eq(Vf::ZERO));
         let any_zero = zero.map(|z| any(lanes & z));
-        let org_abs = rays.org.map(|o| o.abs());
-        let inv_abs = rays.inv_dir.map(|i| i.abs());
+        // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
+        let coord_max = self.coord_max();
+        let margins: [Vf; 3] =
+            std::array::from_fn(|a| (splat(coord_max[a]) + rays.org[a].abs()) * splat(PLANE_SLACK));
+        let slacks: [Vf; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
         let mut stack = Stack::<Entry>::new();
         let mut node = 0u32;
         loop {
@@ -183,9 +186,9 @@ impl KdTree {
                 let children = n.children();
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
-                let margin = (splat(n.split.abs()) + org_abs[axis]) * splat(PLANE_SLACK);
+                let margin = margins[axis];
                 let t_split = (split - o) * inv;
-                let slack = margin * inv_abs[axis];
+                let slack = slacks[axis];
                 let lo = t_split - slack;
                 let hi = t_split + slack;
                 let (near, far) = if negative[axis] {
