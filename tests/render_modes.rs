@@ -140,6 +140,64 @@ color = [1.0, 1.0, 1.0]
     assert_eq!(c.packets.primary, want, "{c:?}");
 }
 
+/// A floor under two point lights and a sphere that shadows part of it: every camera
+/// quad sees the floor or the sphere, so each quad sends one packet of shadow rays
+/// toward each light (4 lanes, fewer where a sphere point faces away from the light),
+/// and no ray alone, while the image stays the scalar one.
+#[test]
+fn point_light_shadow_rays_of_a_quad_are_traced_as_one_packet() {
+    let scene = parse(
+        "point_shadows.toml",
+        r#"
+[camera]
+eye = [0.0, 4.0, -4.0]
+target = [0.0, 0.0, 0.0]
+vfov = 40.0
+
+[render]
+width = 16
+height = 12
+max_depth = 1
+
+[materials.floor]
+color = [0.8, 0.8, 0.8]
+specular = 0.3
+
+[[planes]]
+normal = [0.0, 1.0, 0.0]
+offset = 0.0
+material = "floor"
+
+[[spheres]]
+center = [0.3, 0.6, 0.2]
+radius = 0.5
+material = "floor"
+
+[[lights]]
+kind = "point"
+position = [-2.0, 5.0, 1.0]
+color = [1.0, 1.0, 1.0]
+
+[[lights]]
+kind = "point"
+position = [3.0, 4.0, -1.0]
+color = [0.5, 0.5, 0.5]
+"#,
+    );
+    let c = render_both("point_shadows.toml", &scene).counts;
+    let quads = 16 * 12 / 4;
+    assert!(
+        c.shadow > 2 * 16 * 12 - 16 && c.shadow <= 2 * 16 * 12,
+        "{c:?}"
+    );
+    let want = Batching {
+        packets: 2 * quads,
+        packet_rays: c.shadow,
+        single_rays: 0,
+    };
+    assert_eq!(c.packets.shadow, want, "{c:?}");
+}
+
 /// A glass sphere in front of a mirror wall: refracted, totally internally reflected and
 /// mirror rays, lanes that disagree (some quads straddle the sphere's rim) and rays
 /// that leave the scene. Most secondary rays still go in packets; the image is exact.

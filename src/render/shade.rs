@@ -277,18 +277,40 @@ pub(super) struct Spawn {
     pub(super) weight: Vec3,
 }
 
+/// Point lights whose shadow rays the packet path can trace ahead of shading, one bit
+/// each in the mask [`Shader::direct_on`] takes; later ones are traced during shading.
+pub(super) const POINT_SHADOW_BITS: usize = 64;
+
+/// The shadow ray from `origin` toward `target` on a surface with shading normal `ns`,
+/// and its `N.L`: `None` when the target is behind the surface or not a distance away.
+/// Both paths build every shadow ray here, so the packet path traces the scalar rays.
+#[inline]
+pub(super) fn shadow_ray(origin: Vec3, ns: Vec3, target: Vec3) -> Option<(Ray, f32)> {
+    let to_light = target - origin;
+    let dist = to_light.length();
+    if dist.is_nan() || dist <= 0.0 {
+        return None;
+    }
+    let l = to_light / dist;
+    let n_dot_l = ns.dot(l);
+    if n_dot_l <= 0.0 {
+        return None;
+    }
+    Some((Ray::new(origin, l, 0.0, dist * (1.0 - 1e-5)), n_dot_l))
+}
+
 /// Glossy materials reflect in a cone instead of along the mirror direction.
 fn is_glossy(m: &Material) -> bool {
     m.glossiness > 0.0
 }
 
 /// Where a ray hit, prepared for shading.
-struct Surface<'m> {
+pub(super) struct Surface<'m> {
     p: Vec3,
     /// Geometric normal, facing the incoming ray.
     ng: Vec3,
     /// Shading normal, facing the incoming ray.
-    ns: Vec3,
+    pub(super) ns: Vec3,
     /// True when the ray hit the surface from its back (leaving a solid).
     inside: bool,
     material: &'m Material,
@@ -398,14 +420,35 @@ impl<'a> Shader<'a> {
     /// secondary ray. Draws the area lights' sample positions from the generator.
     pub(super) fn direct(&self, ray: &Ray, hit: &Hit, at: Bounce, path: &mut Path) -> Lit<'a> {
         let s = self.surface(ray, hit);
+        self.direct_on(ray, s, at, path, None)
+    }
+
+    /// Where the shadow rays of `ray`'s hit on `s` start: `None` when the material takes
+    /// no direct light (no shadow ray leaves it).
+    pub(super) fn shadow_origin(&self, ray: &Ray, s: &Surface) -> Option<Vec3> {
+        let m = s.material;
+        (m.diffuse > 0.0 || m.specular > 0.0).then(|| s.p + s.ng * self.offset(ray.org, s.p))
+    }
+
+    /// [`Shader::direct`] on a prepared surface. With `point_occluded`, the shadow rays
+    /// toward point lights below [`POINT_SHADOW_BITS`] were traced already (bit `k` set
+    /// when light `k`'s is occluded; [`shadow_ray`] built them), so they are counted here
+    /// but not traced again.
+    pub(super) fn direct_on(
+        &self,
+        ray: &Ray,
+        s: Surface<'a>,
+        at: Bounce,
+        path: &mut Path,
+        point_occluded: Option<u64>,
+    ) -> Lit<'a> {
         let epsilon = self.offset(ray.org, s.p);
         let m = s.material;
         let settings = &self.scene.settings;
         let mut colour = s.albedo * (settings.ambient * m.diffuse);
         let mut light_bits = 0u64;
 
-        if m.diffuse > 0.0 || m.specular > 0.0 {
-            let origin = s.p + s.ng * epsilon;
+        if let Some(origin) = self.shadow_origin(ray, &s) {
             let view = -ray.dir;
             for (k, light) in self.scene.lights.iter().enumerate() {
                 let count = match light {
@@ -423,30 +466,33 @@ impl<'a> Shader<'a> {
                         }
                     }
                 };
-                let mut batch = ShadowBatch::new(self.packets);
-                for i in 0..count {
-                    let target = match light {
-                        Light::Point { position, .. } => *position,
-                        Light::Area { .. } => {
-                            let (u, v) = stratified(i, path.rng.next_f32(), path.rng.next_f32());
-                            light.point_at(u, v)
+                let traced = point_occluded.filter(|_| k < POINT_SHADOW_BITS);
+                if let (Light::Point { position, .. }, Some(occluded)) = (light, traced) {
+                    if let Some((shadow, n_dot_l)) = shadow_ray(origin, s.ns, *position) {
+                        path.counts.shadow += 1;
+                        if occluded & (1 << k) == 0 {
+                            lit(&shadow, n_dot_l);
                         }
-                    };
-                    let to_light = target - origin;
-                    let dist = to_light.length();
-                    if dist.is_nan() || dist <= 0.0 {
-                        continue;
                     }
-                    let l = to_light / dist;
-                    let n_dot_l = s.ns.dot(l);
-                    if n_dot_l <= 0.0 {
-                        continue;
+                } else {
+                    let mut batch = ShadowBatch::new(self.packets);
+                    for i in 0..count {
+                        let target = match light {
+                            Light::Point { position, .. } => *position,
+                            Light::Area { .. } => {
+                                let (u, v) =
+                                    stratified(i, path.rng.next_f32(), path.rng.next_f32());
+                                light.point_at(u, v)
+                            }
+                        };
+                        let Some((shadow, n_dot_l)) = shadow_ray(origin, s.ns, target) else {
+                            continue;
+                        };
+                        path.counts.shadow += 1;
+                        batch.push(self.accel, shadow, n_dot_l, &mut lit, path.counts);
                     }
-                    path.counts.shadow += 1;
-                    let shadow = Ray::new(origin, l, 0.0, dist * (1.0 - 1e-5));
-                    batch.push(self.accel, shadow, n_dot_l, &mut lit, path.counts);
+                    batch.flush(self.accel, &mut lit, path.counts);
                 }
-                batch.flush(self.accel, &mut lit, path.counts);
                 let inv = 1.0 / count as f32;
                 colour += light.color()
                     * (s.albedo * (m.diffuse * diffuse * inv)
@@ -588,7 +634,7 @@ impl<'a> Shader<'a> {
         }
     }
 
-    fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'a> {
+    pub(super) fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'a> {
         let scene = self.scene;
         let p = ray.at(hit.t);
         let mut ng = scene.geometry.geometric_normal(hit.prim, p);

@@ -1,8 +1,10 @@
 //! render: packet shading. Camera quads and supersampling's sub-pixel samples are traced
 //! as 4-ray packets through [`Accel::intersect_packet`] (the kd-tree's SIMD traversal);
 //! the mirror and refraction rays their lanes spawn are traced as packets again, down
-//! the whole tree ([`Shader::finish_packet`]); the glossy rays of one hit point and the
-//! shadow rays toward the samples of one light are traced [`LANES`] at a time.
+//! the whole tree ([`Shader::finish_packet`]); the lanes' shadow rays toward each point
+//! light form a packet ([`Shader::point_shadows_packet`]); the glossy rays of one hit
+//! point and the shadow rays toward the samples of one area light are traced [`LANES`]
+//! at a time.
 //!
 //! Invariant: a pixel is bit-identical to the scalar path's. The packet traversal
 //! returns the scalar closest hit and any-hit answer bit for bit
@@ -19,12 +21,15 @@
 //! otherwise the rays are traced alone. [`PacketCounts`] counts both.
 
 use super::sample::{Pcg32, pixel_rng};
-use super::shade::{Batching, Bounce, HitSignature, Lit, Path, RayCounts, Shader, Spawn};
+use super::shade::{
+    Batching, Bounce, HitSignature, Lit, POINT_SHADOW_BITS, Path, RayCounts, Shader, Spawn,
+    Surface, shadow_ray,
+};
 use super::tiles::sub_pixel_sample;
 use crate::accel::Accel;
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::ray::{Hit, NO_HIT, Ray};
-use crate::scene::CameraFrame;
+use crate::scene::{CameraFrame, Light};
 use crate::simd::LANES;
 use glam::Vec3;
 
@@ -115,15 +120,21 @@ impl<'a> Shader<'a> {
     ) -> [(Vec3, HitSignature); LANES] {
         let mut out = [(Vec3::ZERO, HitSignature::MISS); LANES];
         let mut lit: [Option<(Hit, Lit<'a>)>; LANES] = Default::default();
+        let mut surfaces: [Option<Surface<'a>>; LANES] = std::array::from_fn(|i| {
+            let hit = hits.lane(i);
+            let ray = rays[i].as_ref().filter(|_| hit.is_hit())?;
+            Some(self.surface(ray, &hit))
+        });
+        let point_occluded = self.point_shadows_packet(rays, &surfaces, counts);
         for (i, rng) in rngs.iter_mut().enumerate() {
             let Some(ray) = &rays[i] else { continue };
             let hit = hits.lane(i);
-            if !hit.is_hit() {
+            let Some(s) = surfaces[i].take() else {
                 out[i].0 = self.background(at[i]);
                 continue;
-            }
+            };
             let mut path = Path { rng, counts };
-            let mut l = self.direct(ray, &hit, at[i], &mut path);
+            let mut l = self.direct_on(ray, s, at[i], &mut path, Some(point_occluded[i]));
             if let Some(c) = self.glossy(ray, &l, at[i], &mut path) {
                 l.colour += c;
             }
@@ -158,6 +169,55 @@ impl<'a> Shader<'a> {
             }
         }
         out
+    }
+
+    /// The shadow rays of the lanes' hits toward each point light (the first
+    /// [`POINT_SHADOW_BITS`]), traced before the lanes are shaded: one packet per light
+    /// when two lanes or more have a ray toward it (the hits of a camera quad are close,
+    /// so these packets are coherent), else the one ray alone. Bit `k` of lane `i` is set
+    /// when lane `i`'s ray toward light `k` is occluded. The rays are [`shadow_ray`]'s, as
+    /// in the scalar path, and point lights draw no random numbers, so shading with these
+    /// answers ([`Shader::direct_on`]) gives the scalar pixels.
+    fn point_shadows_packet(
+        &self,
+        rays: &[Option<Ray>; LANES],
+        surfaces: &[Option<Surface<'a>>; LANES],
+        counts: &mut RayCounts,
+    ) -> [u64; LANES] {
+        let mut occluded = [0u64; LANES];
+        let origins: [Option<Vec3>; LANES] =
+            std::array::from_fn(|i| self.shadow_origin(rays[i].as_ref()?, surfaces[i].as_ref()?));
+        if origins.iter().all(Option::is_none) {
+            return occluded;
+        }
+        let lights = self.scene.lights.iter().take(POINT_SHADOW_BITS);
+        for (k, light) in lights.enumerate() {
+            let Light::Point { position, .. } = light else {
+                continue;
+            };
+            let shadows: [Option<Ray>; LANES] = std::array::from_fn(|i| {
+                let ns = surfaces[i].as_ref()?.ns;
+                shadow_ray(origins[i]?, ns, *position).map(|(ray, _)| ray)
+            });
+            let bits = match shadows.iter().flatten().count() {
+                0 => continue,
+                1 => {
+                    counts.packets.shadow.single_rays += 1;
+                    let bit = |(i, r): (usize, &Option<Ray>)| {
+                        r.as_ref().map(|r| (self.accel.occluded(r) as u32) << i)
+                    };
+                    shadows.iter().enumerate().find_map(bit).unwrap_or(0)
+                }
+                lanes => {
+                    counts.packets.shadow.packet(lanes);
+                    self.accel.occluded_packet(&RayPacket::from_lanes(&shadows))
+                }
+            };
+            for (i, lane) in occluded.iter_mut().enumerate() {
+                *lane |= (((bits >> i) & 1) as u64) << k;
+            }
+        }
+        occluded
     }
 
     /// Traces the lanes' spawned rays, lane `i` drawing from `rngs[i]`, and shades them
