@@ -27,6 +27,7 @@
 use super::KdTree;
 use super::build::MAX_DEPTH;
 use crate::accel::Accel;
+use crate::accel::triaccel::{max_gt, min_lt};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use glam::Vec3;
@@ -96,9 +97,11 @@ impl KdTree {
                 } else if t_split + slack < t_near {
                     node = far;
                 } else {
-                    stack.push((far, t_near.max(t_split - slack), t_far));
+                    // `max_gt`/`min_lt` keep `t_near`/`t_far` where the split distance is NaN
+                    // (a ray in the plane with a subnormal component), as the packet path.
+                    stack.push((far, max_gt(t_split - slack, t_near), t_far));
                     node = near;
-                    t_far = t_far.min(t_split + slack);
+                    t_far = min_lt(t_split + slack, t_far);
                 }
                 continue;
             }

@@ -28,7 +28,9 @@ use super::KdTree;
 use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::scene::Aabb;
-use crate::simd::{LANES, Mask, Vf, Vu, any, bits, mask_from_bits, none, select, splat};
+use crate::simd::{
+    LANES, Mask, Vf, Vu, any, bits, mask_from_bits, max_gt, min_lt, none, select, splat,
+};
 use std::cell::Cell;
 
 thread_local! {
@@ -212,7 +214,14 @@ impl KdTree {
                         select(z, far_z, hi.simd_lt(t_near)),
                     )
                 } else {
-                    (lo.simd_gt(t_far), hi.simd_lt(t_near))
+                    let near_only = lo.simd_gt(t_far);
+                    // The commonest step: every lane goes near only, its mask unchanged
+                    // (the far test below could not remove a near-only lane).
+                    if none(lanes & !near_only) {
+                        node = near;
+                        continue;
+                    }
+                    (near_only, hi.simd_lt(t_near))
                 };
                 // As in the scalar path, near-only wins when both tests pass.
                 let near_lanes = lanes & !(far_only & !near_only);
@@ -227,12 +236,12 @@ impl KdTree {
                     stack.push(Entry {
                         node: far,
                         lanes: far_lanes,
-                        t_near: select(zero[axis], t_near, t_near.max(lo)),
+                        t_near: select(zero[axis], t_near, max_gt(lo, t_near)),
                         t_far,
                     });
                     node = near;
                     lanes = near_lanes;
-                    t_far = select(zero[axis], t_far, t_far.min(hi));
+                    t_far = select(zero[axis], t_far, min_lt(hi, t_far));
                 }
                 continue;
             }
