@@ -286,6 +286,19 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
         assert!(lo > 0.0 && lo <= med && med <= hi, "{r}");
     }
     assert_eq!(rows[0]["rays"], 32 * 32);
+    // Camera quads rarely disagree on a direction sign, cosine bounces nearly always.
+    let split = |set: &str| {
+        let pair = v["split_packets"][set].as_array().unwrap();
+        (pair[0].as_u64().unwrap(), pair[1].as_u64().unwrap())
+    };
+    let (primary_split, primary_total) = split("primary");
+    let (diffuse_split, diffuse_total) = split("diffuse");
+    assert_eq!(primary_total, 32 * 32 / 4);
+    assert!(primary_split * 10 < primary_total, "{primary_split}");
+    assert!(
+        diffuse_split * 2 > diffuse_total,
+        "{diffuse_split} of {diffuse_total}"
+    );
 
     // --rays DIR traces ray files instead: the same rays give the same checksum.
     let primary = dir.join("primary.rays");

@@ -10,6 +10,8 @@
 use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
+use raypack::accel::RayPacket;
+use raypack::accel::kdtree::traverse_packet::sign_group_count;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
@@ -112,9 +114,33 @@ pub struct Report {
     pub height: u32,
     pub light: [f64; 3],
     pub light_source: String,
+    /// Per set: packets of 4 consecutive rays whose lanes disagree on a direction sign
+    /// (the packet path traces them as one group per sign octant), and all packets.
+    pub split_packets: std::collections::BTreeMap<String, [usize; 2]>,
     /// 1-minute load average before and after the timed passes.
     pub load_average: [f64; 2],
     pub results: Vec<Row>,
+}
+
+/// The standard set called `name` (`primary`, `shadow`, `diffuse`; names are checked
+/// before).
+fn set_named<'s>(sets: &'s StandardSets, name: &str) -> &'s RaySet {
+    match name {
+        "primary" => &sets.primary,
+        "shadow" => &sets.shadow,
+        _ => &sets.diffuse,
+    }
+}
+
+/// `[split, total]`: the packets of 4 consecutive rays of `set` (as the packet mode
+/// traces them) whose lanes disagree on a direction sign, and all of them.
+fn split_packets(set: &RaySet) -> [usize; 2] {
+    let packets = set.rays.chunks(raypack::simd::LANES);
+    let total = packets.len();
+    let split = packets
+        .filter(|quad| sign_group_count(&RayPacket::from_rays(quad)) > 1)
+        .count();
+    [split, total]
 }
 
 /// CPU model, logical cores and the SIMD level this binary was built for.
@@ -277,6 +303,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sets.light_source.describe(),
         sets.offset
     );
+    let split_packets: Vec<(String, [usize; 2])> = args
+        .sets
+        .iter()
+        .map(|name| (name.clone(), split_packets(set_named(&sets, name))))
+        .collect();
+    if args.modes.contains(&Mode::Packet) {
+        let shares: Vec<String> = split_packets
+            .iter()
+            .map(|(name, [split, total])| {
+                let share = 100.0 * *split as f64 / (*total).max(1) as f64;
+                format!("{name} {split} of {total} ({share:.1}%)")
+            })
+            .collect();
+        println!(
+            "packets split by direction signs (traced as one group per sign octant): {}",
+            shares.join(", ")
+        );
+    }
     println!(
         "{:<8} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
         "set", "mode", "threads", "rays", "median", "min", "max"
@@ -290,10 +334,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut disagreements = Vec::new();
     let load_before = load_average();
     for name in &args.sets {
-        let (set, query) = match name.as_str() {
-            "primary" => (&sets.primary, Query::Closest),
-            "shadow" => (&sets.shadow, Query::Occluded),
-            _ => (&sets.diffuse, Query::Closest),
+        let set = set_named(&sets, name);
+        let query = match name.as_str() {
+            "shadow" => Query::Occluded,
+            _ => Query::Closest,
         };
         let mut first: Option<Checksum> = None;
         for (t, pool) in &pools {
@@ -353,6 +397,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             height: sets.primary.height,
             light: sets.light.to_array(),
             light_source: sets.light_source.describe().to_string(),
+            split_packets: split_packets.into_iter().collect(),
             load_average: [load_before, load_after],
             results: rows,
         };

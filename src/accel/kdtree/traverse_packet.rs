@@ -99,11 +99,29 @@ fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf
     (live & t0.simd_le(t1), t0, t1)
 }
 
+/// Lane groups of `active` that agree on every direction sign, counting the packets
+/// that had to be split ([`packet_split_count`]).
+#[inline]
+fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
+    let (groups, count) = sign_groups(rays, active);
+    if count > 1 {
+        PACKET_SPLITS.with(|c| c.set(c.get() + 1));
+    }
+    (groups, count)
+}
+
+/// How many groups the traversal walks the active lanes of `rays` in: 1 for a packet
+/// whose lanes agree on every direction sign, else one per sign octant present.
+/// `raypack bench` reports the share of packets of a ray set that split.
+pub fn sign_group_count(rays: &RayPacket) -> usize {
+    sign_groups(rays, bits(rays.active)).1
+}
+
 /// Lane groups of `active` that agree on every direction sign: one group when the
 /// packet is coherent, else one per sign octant present (zero components count as
 /// positive; they agree with either side).
 #[inline]
-fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
+fn sign_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
     let neg = rays.dir.map(|d| bits(d.simd_lt(Vf::ZERO)) & active);
     let pos = rays.dir.map(|d| bits(d.simd_gt(Vf::ZERO)) & active);
     let mut groups = [0u32; LANES];
@@ -111,7 +129,6 @@ fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
         groups[0] = active;
         return (groups, 1);
     }
-    PACKET_SPLITS.with(|c| c.set(c.get() + 1));
     let octant = |lane: u32| (0..3).map(|a| ((neg[a] >> lane) & 1) << a).sum::<u32>();
     let (mut left, mut count) = (active, 0);
     while left != 0 {
