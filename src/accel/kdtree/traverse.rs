@@ -60,7 +60,7 @@ impl KdTree {
     /// Closest hit among the tree's primitives (planes excluded), folded into `best`;
     /// with `ANY_HIT`, returns true at the first hit in `(t_min, t_max)` instead.
     #[inline]
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
+    pub(super) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
         let inv_dir = Vec3::ONE / ray.dir;
         let Some((mut t_near, mut t_far)) = self.clip_ray(ray, inv_dir) else {
             return false;

@@ -16,7 +16,8 @@
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and
-//!   traced one group after the other; [`packet_split_count`] counts them.
+//!   traced one group after the other; [`packet_split_count`] counts them. A group of
+//!   one lane takes the scalar traversal, whose answer is the same.
 //! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
 //!   [`crate::accel::prims_packet`], bit-identical to the scalar tests, and merge in
 //!   [`crate::ray::Hit::is_closer`] order; a stack entry is dropped for the lanes whose
@@ -27,6 +28,7 @@
 use super::KdTree;
 use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
+use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use crate::simd::{
     LANES, Mask, Vf, Vu, any, bits, mask_from_bits, max_gt, min_lt, none, select, splat,
@@ -110,6 +112,19 @@ fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
     (groups, count)
 }
 
+/// The lane of a group of one, and its ray: such a group is traced by the scalar
+/// traversal, which gives the same answer bit for bit (the packet path's invariant) for
+/// less work than a packet step with three lanes masked off. Incoherent packets (cosine
+/// bounces) split into about three groups, most of them lone lanes.
+#[inline]
+fn lone_lane(rays: &RayPacket, group: u32) -> Option<(usize, Ray)> {
+    if group.count_ones() != 1 {
+        return None;
+    }
+    let i = group.trailing_zeros() as usize;
+    rays.lane(i).map(|ray| (i, ray))
+}
+
 /// How many groups the traversal walks the active lanes of `rays` in: 1 for a packet
 /// whose lanes agree on every direction sign, else one per sign octant present.
 /// `raypack bench` reports the share of packets of a ray set that split.
@@ -150,8 +165,22 @@ impl KdTree {
     pub fn intersect_packet(&self, rays: &RayPacket) -> HitPacket {
         let mut best = HitPacket::miss();
         let (groups, count) = coherent_groups(rays, bits(rays.active));
+        let mut alone = [None; LANES];
         for &group in &groups[..count] {
-            self.traverse_packet::<false>(rays, mask_from_bits(group), &mut best);
+            match lone_lane(rays, group) {
+                Some((i, ray)) => {
+                    let mut hit = Hit::MISS;
+                    self.traverse::<false>(&ray, &mut hit);
+                    alone[i] = Some(hit);
+                }
+                None => {
+                    self.traverse_packet::<false>(rays, mask_from_bits(group), &mut best);
+                }
+            }
+        }
+        if alone.iter().any(Option::is_some) {
+            let grouped = best;
+            best = HitPacket::from_lanes(|i| alone[i].unwrap_or_else(|| grouped.lane(i)));
         }
         self.prims
             .intersect_planes_packet(rays, rays.active, &mut best);
@@ -167,8 +196,18 @@ impl KdTree {
         let (groups, count) = coherent_groups(rays, rest);
         let mut occluded = bits(by_plane);
         for &group in &groups[..count] {
-            let lanes = mask_from_bits(group);
-            occluded |= bits(self.traverse_packet::<true>(rays, lanes, &mut best));
+            match lone_lane(rays, group) {
+                Some((_, ray)) => {
+                    let mut unused = Hit::MISS;
+                    if self.traverse::<true>(&ray, &mut unused) {
+                        occluded |= group;
+                    }
+                }
+                None => {
+                    let lanes = mask_from_bits(group);
+                    occluded |= bits(self.traverse_packet::<true>(rays, lanes, &mut best));
+                }
+            }
         }
         occluded
     }
