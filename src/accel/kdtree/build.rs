@@ -592,6 +592,8 @@ impl Builder<'_> {
 /// right (straddlers dropped), each list merged on the way with the sorted new events
 /// of its side (`fresh`, each ending in a `u64::MAX` sentinel). The copy is
 /// branch-free: every event is written to both lists, and only its side's list moves on.
+/// The merge is one well-predicted test per event against the smaller of the two next
+/// new events; the new events are few (straddlers only).
 fn split_events(src: &[u64], side: &[u8], fresh: [&[u64]; 2], axis: usize, kids: &mut [Lists; 2]) {
     let [left, right] = kids;
     let [left_new, right_new] = fresh;
@@ -599,16 +601,20 @@ fn split_events(src: &[u64], side: &[u8], fresh: [&[u64]; 2], axis: usize, kids:
     let r = right.room(axis, src.len() + right_new.len());
     let (mut n_left, mut n_right) = (0, 0);
     let (mut i_left, mut i_right) = (0, 0);
+    let mut next_new = left_new[0].min(right_new[0]);
     for &e in src {
-        while left_new[i_left] < e {
-            l[n_left] = left_new[i_left];
-            n_left += 1;
-            i_left += 1;
-        }
-        while right_new[i_right] < e {
-            r[n_right] = right_new[i_right];
-            n_right += 1;
-            i_right += 1;
+        if next_new < e {
+            while left_new[i_left] < e {
+                l[n_left] = left_new[i_left];
+                n_left += 1;
+                i_left += 1;
+            }
+            while right_new[i_right] < e {
+                r[n_right] = right_new[i_right];
+                n_right += 1;
+                i_right += 1;
+            }
+            next_new = left_new[i_left].min(right_new[i_right]);
         }
         let s = side[event_prim(e) as usize];
         l[n_left] = e;
