@@ -592,6 +592,8 @@ impl Builder<'_> {
 /// right (straddlers dropped), each list merged on the way with the sorted new events
 /// of its side (`fresh`, each ending in a `u64::MAX` sentinel). The copy is
 /// branch-free: every event is written to both lists, and only its side's list moves on.
+/// The merge is one well-predicted test per event against the smaller of the two next
+/// new events; the new events are few (straddlers only).
 fn split_events(src: &[u64], side: &[u8], fresh: [&[u64]; 2], axis: usize, kids: &mut [Lists; 2]) {
     let [left, right] = kids;
     let [left_new, right_new] = fresh;
@@ -599,16 +601,20 @@ fn split_events(src: &[u64], side: &[u8], fresh: [&[u64]; 2], axis: usize, kids:
     let r = right.room(axis, src.len() + right_new.len());
     let (mut n_left, mut n_right) = (0, 0);
     let (mut i_left, mut i_right) = (0, 0);
+    let mut next_new = left_new[0].min(right_new[0]);
     for &e in src {
-        while left_new[i_left] < e {
-            l[n_left] = left_new[i_left];
-            n_left += 1;
-            i_left += 1;
-        }
-        while right_new[i_right] < e {
-            r[n_right] = right_new[i_right];
-            n_right += 1;
-            i_right += 1;
+        if next_new < e {
+            while left_new[i_left] < e {
+                l[n_left] = left_new[i_left];
+                n_left += 1;
+                i_left += 1;
+            }
+            while right_new[i_right] < e {
+                r[n_right] = right_new[i_right];
+                n_right += 1;
+                i_right += 1;
+            }
+            next_new = left_new[i_left].min(right_new[i_right]);
         }
         let s = side[event_prim(e) as usize];
         l[n_left] = e;
@@ -711,6 +717,65 @@ impl Polygon {
         Some(out)
     }
 
+    /// Appends corner `p` (`exact` when it is one of the triangle's own); `false` when the
+    /// corner array is full.
+    fn push(&mut self, p: [f32; 3], exact: u32) -> bool {
+        let Some(slot) = self.corners.get_mut(self.len) else {
+            return false;
+        };
+        *slot = p;
+        self.exact |= exact << self.len;
+        self.len += 1;
+        true
+    }
+
+    /// The parts with `p[axis] <= plane` and with `p[axis] >= plane`, the same polygons
+    /// as [`Polygon::clip`] gives for each side, in one pass that computes each point
+    /// where an edge crosses the plane once for both (the division is the clipper's
+    /// slowest step). A part is `None` when it would overflow the corner array.
+    fn split(&self, axis: usize, plane: f32) -> [Option<Polygon>; 2] {
+        let len = self.len;
+        let corners = &self.corners[..len];
+        // Bit i: corner i is on the part's side.
+        let (mut below, mut above) = (0u32, 0u32);
+        for (i, p) in corners.iter().enumerate() {
+            below |= ((p[axis] <= plane) as u32) << i;
+            above |= ((p[axis] >= plane) as u32) << i;
+        }
+        let empty = Polygon {
+            corners: [[0.0; 3]; CLIP_VERTICES],
+            exact: 0,
+            len: 0,
+        };
+        let mut parts = [empty; 2];
+        let mut fits = [true; 2];
+        for (i, a) in corners.iter().enumerate() {
+            let j = if i + 1 == len { 0 } else { i + 1 };
+            let mut crossing = None;
+            for (k, kept) in [below, above].into_iter().enumerate() {
+                let (a_in, b_in) = (kept >> i & 1, kept >> j & 1);
+                if a_in == 1 {
+                    fits[k] &= parts[k].push(*a, self.exact >> i & 1);
+                }
+                if a_in != b_in {
+                    let p = *crossing.get_or_insert_with(|| {
+                        let b = &corners[j];
+                        let t = (plane - a[axis]) / (b[axis] - a[axis]);
+                        let mut p = [0.0; 3];
+                        for k in 0..3 {
+                            p[k] = a[k] + (b[k] - a[k]) * t;
+                        }
+                        p[axis] = plane;
+                        p
+                    });
+                    fits[k] &= parts[k].push(p, 0);
+                }
+            }
+        }
+        let [below_part, above_part] = parts;
+        [fits[0].then_some(below_part), fits[1].then_some(above_part)]
+    }
+
     /// The part inside `cell`, clipping only by the faces that cut `whole`, the bounds
     /// of the triangle the polygon came from (the others leave it whole).
     fn clip_to_cell(self, whole: &Aabb, cell: &Aabb) -> Option<Polygon> {
@@ -802,16 +867,19 @@ pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Op
     let whole = triangle_bounds(&tri);
     let scale = whole.min.abs().max(whole.max.abs());
     let (left_cell, right_cell) = child_cells(cell, axis, pos);
-    let parent = Polygon::triangle(tri).clip_to_cell(&whole, cell);
-    [(left_cell, true), (right_cell, false)].map(|(child, keep_below)| {
-        if contains(&child, &whole) {
-            return Some(whole);
-        }
-        parent
-            .and_then(|p| p.clip(axis, pos, keep_below))
-            .and_then(|p| p.bounds_in(scale, &child))
-            .or_else(|| overlap_fallback(tri, &whole, &child))
-    })
+    let parts = Polygon::triangle(tri)
+        .clip_to_cell(&whole, cell)
+        .map_or([None, None], |p| p.split(axis, pos));
+    let mut bounds = [None; 2];
+    for ((b, part), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
+        *b = if contains(&child, &whole) {
+            Some(whole)
+        } else {
+            part.and_then(|p| p.bounds_in(scale, &child))
+                .or_else(|| overlap_fallback(tri, &whole, &child))
+        };
+    }
+    bounds
 }
 
 /// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over
