@@ -188,3 +188,49 @@ fn obj_forward_index_past_a_group_names_its_line() {
         "{e}"
     );
 }
+
+/// A ray at extreme magnitudes (origin 9.2e36 from the scene along -z, an unnormalised
+/// direction, a `t` range wholly negative) grazing a sliver of a triangle that lies
+/// almost in the plane y = 0 (artifact crash-22fab4bc): brute force hits triangle 2 and
+/// the kd-tree's scalar path missed it.
+#[test]
+fn kdtree_extreme_grazing_ray_behind_the_origin() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [3.77507e-34, 2.8004812e-34, 1.0177144e-34],
+            [2.6140072e-23, 1.0014031e-34, 2.1112888],
+            [-3.195705e-10, 6.383234e-27, 1.838529e-9],
+            [-9.812811e-30, 6.383234e-27, 1.0210487e-34],
+            [39423.984, 3.2940758e-23, 1.3957111e-17],
+        ],
+        triangles: vec![
+            [252, 50, 71],
+            [7, 71, 175],
+            [221, 252, 19],
+            [184, 7, 7],
+            [252, 255, 25],
+            [175, 74, 31],
+        ],
+        extras: false,
+        rays: vec![
+            (
+                [-6084.4375, 7.873303e29, 3.5362987e-34],
+                [6.2187e-40, 9.738125e-35, 68111.836],
+                -3.19325e-10,
+                -9.208487e36,
+            ),
+            (
+                [2.9416464e-8, 1.4973235e-34, -9.208487e36],
+                [2.7758755e-34, 1.658137e-36, -3.689298e19],
+                -3.2263715e19,
+                -1.2303712e-10,
+            ),
+            (
+                [9000859300000000.0, f32::NAN, 3.57e-43],
+                [0.0, 0.0, 0.0],
+                0.0,
+                0.0,
+            ),
+        ],
+    });
+}

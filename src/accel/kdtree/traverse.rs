@@ -13,8 +13,9 @@
 //!   triangle test can round such a ray onto a triangle that lies across the plane (an
 //!   axis-parallel ray through a shared corner, say). For a crossing ray the margin
 //!   becomes an interval in `t`; for a parallel one, a band around the plane. The
-//!   coordinates involved are the ray's origin and the tree box's largest coordinate on
-//!   the split axis, which bounds every split position on it: the margin is then one number per ray and
+//!   coordinates involved are the ray origin's largest coordinate ([`org_max`], as the
+//!   triangle test's error bound has it) and the tree box's largest coordinate on the
+//!   split axis, which bounds every split position on it: the margin is then one number per ray and
 //!   axis, computed once, and a node step costs a subtraction and an addition more than
 //!   the bare split distance. A wider margin only visits more cells, never fewer.
 //! - A primitive found in a leaf may be hit outside the leaf's cell; the search stops only
@@ -181,7 +182,7 @@ struct RayAxes {
     org: [f32; 4],
     inv: [f32; 4],
     /// Half-width of the band around a split plane where the ray counts as on both
-    /// sides: `(coord_max[axis] + |o[axis]|) * PLANE_SLACK`.
+    /// sides: `(coord_max[axis] + org_max) * PLANE_SLACK`.
     margin: [f32; 4],
     /// `margin / |d|`: the band as an interval of `t` around the split distance.
     slack: [f32; 4],
@@ -196,7 +197,7 @@ impl RayAxes {
     fn new(ray: &Ray, inv_dir: Vec3, coord_max: Vec3) -> RayAxes {
         let four = |v: Vec3| [v.x, v.y, v.z, 0.0];
         let d = four(ray.dir);
-        let margin = (coord_max + ray.org.abs()) * PLANE_SLACK;
+        let margin = (coord_max + Vec3::splat(org_max(ray.org))) * PLANE_SLACK;
         RayAxes {
             org: four(ray.org),
             inv: four(inv_dir),
@@ -206,6 +207,15 @@ impl RayAxes {
             zero: d.map(|c| c == 0.0),
         }
     }
+}
+
+/// The largest origin coordinate, in the triangle test's order
+/// ([`crate::accel::triaccel`]): the test's rounding grows with it on every axis (a ray
+/// from far away along z can land a hit off in y by that much), so the planes and the
+/// box are widened by it, not by the origin's coordinate on their own axis alone.
+#[inline]
+pub fn org_max(o: Vec3) -> f32 {
+    max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs())
 }
 
 /// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`].
@@ -218,10 +228,11 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
         return None;
     }
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+    let o_max = org_max(ray.org);
     for axis in 0..3 {
         let o = ray.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);
-        let margin = (lo.abs().max(hi.abs()) + o.abs()) * PLANE_SLACK;
+        let margin = (lo.abs().max(hi.abs()) + o_max) * PLANE_SLACK;
         if ray.dir[axis] == 0.0 {
             if !(o >= lo - margin && o <= hi + margin) {
                 return None;

@@ -67,6 +67,13 @@ fn next_up(v: Vf) -> Vf {
     select(v.simd_eq(Vf::ZERO), Vf::from_bits(one), r)
 }
 
+/// The packet twin of [`super::traverse::org_max`].
+#[inline]
+fn org_max_packet(rays: &RayPacket) -> Vf {
+    let o = &rays.org;
+    max_gt(max_gt(o[0].abs(), o[1].abs()), o[2].abs())
+}
+
 /// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
 /// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it
 /// (never a lane with a NaN or infinite origin or direction, a zero direction or
@@ -80,10 +87,11 @@ fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf
         & rays.dir[2].simd_eq(Vf::ZERO);
     let mut live =
         active & finite(&rays.org) & finite(&rays.dir) & !zero_dir & rays.t_min.simd_le(rays.t_max);
+    let o_max = org_max_packet(rays);
     for axis in 0..3 {
         let o = rays.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);
-        let margin = (splat(lo.abs().max(hi.abs())) + o.abs()) * splat(PLANE_SLACK);
+        let margin = (splat(lo.abs().max(hi.abs())) + o_max) * splat(PLANE_SLACK);
         let d = rays.dir[axis];
         let parallel = d.simd_eq(Vf::ZERO);
         let inside = o.simd_ge(splat(lo) - margin) & o.simd_le(splat(hi) + margin);
@@ -232,8 +240,9 @@ impl KdTree {
         let any_zero = zero.map(|z| any(lanes & z));
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
         let coord_max = self.coord_max();
+        let o_max = org_max_packet(rays);
         let margins: [Vf; 3] =
-            std::array::from_fn(|a| (splat(coord_max[a]) + rays.org[a].abs()) * splat(PLANE_SLACK));
+            std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
         let slacks: [Vf; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
         let mut stack = Stack::<Entry>::new();
         let mut node = 0u32;
