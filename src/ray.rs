@@ -28,14 +28,16 @@ impl Ray {
         }
     }
 
-    /// Whether any primitive can be hit: finite origin and direction, a non-zero
-    /// direction and `t_min <= t_max`. Every intersector answers "no hit" for other rays
-    /// (see [`crate::accel::Accel`]) without testing a primitive.
+    /// Whether any primitive can be hit: finite origin and direction, a direction whose
+    /// largest component lies in [`DIR_MIN`, `DIR_MAX`] (a zero direction does not) and
+    /// `t_min <= t_max`. Every intersector answers "no hit" for other rays (see
+    /// [`crate::accel::Accel`]) without testing a primitive.
     #[inline]
     pub fn is_usable(&self) -> bool {
+        let d_max = self.dir.abs().max_element();
         self.org.is_finite()
             && self.dir.is_finite()
-            && self.dir != Vec3::ZERO
+            && (DIR_MIN..=DIR_MAX).contains(&d_max)
             && self.t_min <= self.t_max
     }
 
@@ -45,6 +47,17 @@ impl Ray {
         self.org + self.dir * t
     }
 }
+
+/// Smallest largest-component a usable direction may have (2^-64).
+///
+/// Directions far from unit length make `t * d` overflow or underflow in f32 long before
+/// `t` does, and the triangle test's shear (`d_u / d_k`) underflow: the tests' answers
+/// then stop being consistent with any bounds a traversal can widen. Normalised
+/// directions are always inside [`DIR_MIN`, `DIR_MAX`]; rays outside hit nothing.
+pub const DIR_MIN: f32 = 1.0 / (1u64 << 63) as f32 / 2.0;
+
+/// Largest largest-component a usable direction may have (2^64); see [`DIR_MIN`].
+pub const DIR_MAX: f32 = (1u64 << 63) as f32 * 2.0;
 
 /// A ray-primitive intersection. `u`, `v` are barycentric weights of a triangle's
 /// second and third vertex (zero for other primitives).

@@ -23,8 +23,9 @@ use triaccel::TriAccel;
 /// An intersector over one scene's primitives.
 ///
 /// Numeric edge cases have one defined answer in every intersector and both paths: a
-/// ray with a NaN or infinite origin or direction component, a zero direction, or
-/// `!(t_min <= t_max)` hits nothing (`intersect` is `None`, `occluded` false); a ray
+/// ray with a NaN or infinite origin or direction component, a zero direction, a
+/// direction whose largest component lies outside [2^-64, 2^64] ([`crate::ray::DIR_MIN`]),
+/// or `!(t_min <= t_max)` hits nothing (`intersect` is `None`, `occluded` false); a ray
 /// starting exactly on a surface, an edge or a split plane gets the closest hit with
 /// `t > t_min` strictly, the same as brute force's, bit for bit.
 pub trait Accel: Sync {

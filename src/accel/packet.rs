@@ -1,9 +1,9 @@
 //! Ray packets in structure-of-arrays form: one SIMD register per component, one ray
 //! per lane (Wald 2004, chapter 6). The lane count comes from [`crate::simd::LANES`].
 
-use crate::ray::{Hit, NO_HIT, Ray};
+use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
 use crate::scene::CameraFrame;
-use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, select, select_u};
+use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, max_gt, select, select_u};
 use glam::Vec3;
 
 /// `LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel: their
@@ -70,14 +70,15 @@ impl RayPacket {
     }
 
     /// Lanes that can hit anything; the twin of [`Ray::is_usable`] (finite origin and
-    /// direction, a non-zero direction, `t_min <= t_max`).
+    /// direction, the direction's largest component in [`DIR_MIN`, `DIR_MAX`],
+    /// `t_min <= t_max`).
     #[inline]
     pub fn usable(&self) -> Mask {
         let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
-        let zero_dir = self.dir[0].simd_eq(Vf::ZERO)
-            & self.dir[1].simd_eq(Vf::ZERO)
-            & self.dir[2].simd_eq(Vf::ZERO);
-        finite(&self.org) & finite(&self.dir) & !zero_dir & self.t_min.simd_le(self.t_max)
+        let d = &self.dir;
+        let d_max = max_gt(max_gt(d[0].abs(), d[1].abs()), d[2].abs());
+        let scaled = d_max.simd_ge(Vf::splat(DIR_MIN)) & d_max.simd_le(Vf::splat(DIR_MAX));
+        finite(&self.org) & finite(&self.dir) & scaled & self.t_min.simd_le(self.t_max)
     }
 
     /// Bit `i` set when lane `i` is active.

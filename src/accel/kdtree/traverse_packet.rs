@@ -81,12 +81,7 @@ fn org_max_packet(rays: &RayPacket) -> Vf {
 #[inline]
 fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf) {
     let (mut t0, mut t1) = (rays.t_min, rays.t_max);
-    let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
-    let zero_dir = rays.dir[0].simd_eq(Vf::ZERO)
-        & rays.dir[1].simd_eq(Vf::ZERO)
-        & rays.dir[2].simd_eq(Vf::ZERO);
-    let mut live =
-        active & finite(&rays.org) & finite(&rays.dir) & !zero_dir & rays.t_min.simd_le(rays.t_max);
+    let mut live = active & rays.usable();
     let o_max = org_max_packet(rays);
     for axis in 0..3 {
         let o = rays.org[axis];
