@@ -191,8 +191,9 @@ fn obj_forward_index_past_a_group_names_its_line() {
 
 /// A ray at extreme magnitudes (origin 9.2e36 from the scene along -z, an unnormalised
 /// direction, a `t` range wholly negative) grazing a sliver of a triangle that lies
-/// almost in the plane y = 0 (artifact crash-22fab4bc): brute force hits triangle 2 and
-/// the kd-tree's scalar path missed it.
+/// almost in the plane y = 0 (artifact crash-22fab4bc): brute force hit triangle 2 and
+/// the kd-tree's scalar path missed it. Fixed by the origin margins (`org_max`); the
+/// direction (3.7e19) is now also past `DIR_MAX`, so every path answers "no hit".
 #[test]
 fn kdtree_extreme_grazing_ray_behind_the_origin() {
     check_kdtree(KdInput {
@@ -228,6 +229,256 @@ fn kdtree_extreme_grazing_ray_behind_the_origin() {
             (
                 [9000859300000000.0, f32::NAN, 3.57e-43],
                 [0.0, 0.0, 0.0],
+                0.0,
+                0.0,
+            ),
+        ],
+    });
+}
+
+/// Artifact crash-28394ac9 of the `kdtree` target's second run: the kd-tree disagreed with
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+#[test]
+fn kdtree_far_origin_grazing_ray_2() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [3.77507e-34, 2.8004812e-34, 1.0177144e-34],
+            [7.4503e-41, 1.0055766e-34, 42783.355],
+            [5.51274e-39, 129650690.0, -0.15967076],
+            [-472893300000000.0, -474644050000000.0, -474644050000000.0],
+            [9.3678e-41, 3.372861e-20, 51015.027],
+            [-8.4e-44, 6.61381e-27, 7.4517175e-9],
+        ],
+        triangles: vec![[5, 71, 251], [71, 31, 236], [71, 235, 175]],
+        extras: false,
+        rays: vec![
+            (
+                [3.2940758e-23, 1.3957111e-17, 6.2195e-40],
+                [9.738125e-35, 2.091905e-34, -3.19325e-10],
+                -9.208487e36,
+                -7.28951e36,
+            ),
+            (
+                [9.70702e-35, 42783.355, 0.00825674],
+                [-4.0970467e33, 1.3957111e-17, 1.0459528e-31],
+                9.3678e-41,
+                3.372861e-20,
+            ),
+            (
+                [1.9530938e-14, 5743528.0, -0.00311435],
+                [-1.7126169e18, -1.9983972e18, -1.9983972e18],
+                -1.9983972e18,
+                -1.7200811e-38,
+            ),
+            (
+                [2.0844536e-27, -3.167264e-10, 4.408457e-31],
+                [6e-45, 0.0, 0.0],
+                0.0,
+                0.0,
+            ),
+        ],
+    });
+}
+
+/// Artifact crash-c3c40412 of the `kdtree` target's second run: the kd-tree disagreed with
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+#[test]
+fn kdtree_far_origin_grazing_ray_3() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [3.77507e-34, 2.8004812e-34, -0.13272105],
+            [7.666432e-36, 4.827697e-20, 6.54069e-40],
+            [9.1576e-41, 4.5918e-41, 1.2221296e-38],
+            [-3.1837308e-10, 2.9e-43, 8.4899e-41],
+            [9.111465e17, 4.11851e-23, 4.728853e-38],
+        ],
+        triangles: vec![
+            [6, 0, 31],
+            [60, 7, 235],
+            [133, 7, 0],
+            [175, 175, 175],
+            [221, 248, 19],
+            [175, 252, 49],
+            [7, 3, 71],
+            [174, 221, 253],
+            [125, 186, 7],
+            [15, 252, 251],
+            [127, 255, 223],
+            [223, 223, 223],
+            [71, 7, 175],
+            [223, 209, 255],
+            [89, 61, 255],
+            [12, 35, 5],
+            [251, 93, 71],
+            [59, 154, 202],
+        ],
+        extras: true,
+        rays: vec![
+            (
+                [2181315.0, 6.21727e-40, -2.6183829e36],
+                [-3.6820923e19, -3.2263715e19, -1.2303712e-10],
+                f32::NAN,
+                -2.5168801e38,
+            ),
+            (
+                [35738665000.0, 4.2217628e-20, 1.8606098e-38],
+                [90043.37, -2548.6677, 3.447765e-17],
+                -2.2197706e24,
+                1.0197707e-34,
+            ),
+            (
+                [-4.2925677e-10, -6.1495164e-15, 2.5987664e-26],
+                [34744.027, 3.72027e-40, 0.0],
+                0.0,
+                0.0,
+            ),
+        ],
+    });
+}
+
+/// Artifact crash-cc1a9abd of the `kdtree` target's second run: the kd-tree disagreed with
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+#[test]
+fn kdtree_far_origin_grazing_ray_4() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [3.77507e-34, 2.8004812e-34, 1.0177144e-34],
+            [7.4503e-41, 1.0055766e-34, 42783.355],
+            [5.51274e-39, -3.6048022e33, -0.1596691],
+            [7.666432e-36, 58112.004, 34591.12],
+            [5.51274e-39, 4.5918e-41, 2.82681e-40],
+            [7.666463e-36, 58363.277, 90072.24],
+            [-8.383148e-5, 3.294046e-23, 1.3957111e-17],
+        ],
+        triangles: vec![
+            [6, 0, 31],
+            [89, 89, 61],
+            [7, 12, 35],
+            [71, 251, 99],
+            [31, 252, 235],
+            [71, 175, 221],
+            [255, 255, 255],
+            [255, 255, 71],
+        ],
+        extras: false,
+        rays: vec![
+            (
+                [6.3993117e-27, 1.0210478e-34, 1.3234094e-23],
+                [-2.6571527e36, -3.2263715e19, -2.5224255e19],
+                8992063000000000.0,
+                1.0534001e-34,
+            ),
+            (
+                [-1.0384439e36, -3.3080924e36, -1.8164996e-10],
+                [-1.8161424e-10, -1.1262009e-33, -2.3017015e-10],
+                -3187.2466,
+                7.873303e29,
+            ),
+            (
+                [-6.390837e-36, -1.798154e38, 1.0177165e-34],
+                [-3.1933153e-10, -9.208487e36, 4.684712e-16],
+                -1.5824237e18,
+                -6.0338512e-5,
+            ),
+            ([6.6575005e-30, 1.453e-42, 0.0], [0.0, 0.0, 0.0], 0.0, 0.0),
+        ],
+    });
+}
+
+/// Artifact crash-7191fd4c of the `kdtree` target's second run: the kd-tree disagreed with
+/// brute force on a ray at extreme magnitudes; fixed by the direction range (DIR_MAX).
+#[test]
+fn kdtree_huge_direction_hits_nothing() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [3.77507e-34, 2.8004812e-34, 1.0177144e-34],
+            [7.4503e-41, 1.0055766e-34, 5.4000186e-25],
+            [0.012145996, 129651256.0, -1.7241693e-38],
+            [7.666432e-36, 58353.277, 116286.24],
+            [5.51274e-39, 4.5918e-41, 1.2221296e-38],
+            [7.05917e-40, 2.756e-42, 90073.33],
+            [2.616627e-14, 1.2565777e-28, 1.3957111e-17],
+        ],
+        triangles: vec![
+            [6, 0, 31],
+            [1, 7, 235],
+            [128, 35, 190],
+            [6, 159, 31],
+            [2, 7, 235],
+            [133, 7, 0],
+            [175, 175, 175],
+            [221, 252, 19],
+            [175, 252, 53],
+            [175, 5, 7],
+            [221, 175, 19],
+            [125, 184, 15],
+            [15, 255, 0],
+            [25, 127, 255],
+            [223, 223, 175],
+            [175, 71, 179],
+        ],
+        extras: true,
+        rays: vec![
+            (
+                [3835084500000000.0, 1.047683e-31, -1.03337126e36],
+                [-3.3080905e36, -1.8161443e-10, -4.6493245e-8],
+                58143.29,
+                116286.24,
+            ),
+            (
+                [0.0007172715, 4.5918e-41, 1.2221296e-38],
+                [-1.8257016e36, 1.17663e-40, 2.39923e21],
+                -6.032768e-5,
+                1.0210352e-34,
+            ),
+            ([1.453e-42, 0.0, 0.0], [0.0, 0.0, 0.0], 0.0, 0.0),
+        ],
+    });
+}
+
+/// Artifact crash-c15b7499 of the `kdtree` target's second run: the kd-tree disagreed with
+/// brute force on a ray at extreme magnitudes; fixed by the direction range (DIR_MAX).
+#[test]
+fn kdtree_huge_direction_hits_nothing_2() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [2.936917e-8, 5.9042002e-36, 4.2198635e-20],
+            [1.0158382e-34, -6.09365e26, 1.035843e-39],
+            [7.6664624e-36, 2.9511387e21, -4.2950374e-10],
+            [11336072000.0, 4.292018e-20, -1.7200538e-38],
+            [6.2195e-40, 9.738125e-35, 2.001627e-34],
+        ],
+        triangles: vec![
+            [175, 175, 175],
+            [221, 252, 19],
+            [175, 252, 48],
+            [7, 5, 71],
+            [175, 175, 175],
+            [0, 0, 0],
+        ],
+        extras: false,
+        rays: vec![
+            (
+                [-1.632405e26, -3.9452003e-31, -3.1957145e-10],
+                [-6084.483, 1.2234305e37, 6.6575005e-30],
+                2.0468026e38,
+                -3.2263786e19,
+            ),
+            (
+                [1.5036886e-34, -1.3158117e-36, 0.053056713],
+                [7.5911084e-18, -2.1038678e38, -6.0959402e26],
+                -1.578782e18,
+                -6.528816e-39,
+            ),
+            (
+                [2.0287832e-17, 3.0049854e-35, 6.83387e-40],
+                [6.383234e-27, 1.4708232e-8, 6.6574155e-30],
+                1.0177195e-34,
+                -3.1933153e-10,
+            ),
+            (
+                [6.383234e-27, 4.6576115e-10, -9.208487e36],
+                [2.7758755e-34, 6.6575005e-30, 1.378986e-39],
                 0.0,
                 0.0,
             ),
