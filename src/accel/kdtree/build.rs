@@ -645,6 +645,19 @@ const CLIP_SLACK: f32 = 1e-6;
 /// made more ragged than that takes the exact overlap test's answer instead.
 const CLIP_VERTICES: usize = 10;
 
+/// The point where the edge from `a` to `b` crosses the plane `p[axis] = plane`, put
+/// exactly on it; [`Polygon::clip`] and [`Polygon::split`] share it so both cut alike.
+#[inline]
+fn crossing(a: &[f32; 3], b: &[f32; 3], axis: usize, plane: f32) -> [f32; 3] {
+    let t = (plane - a[axis]) / (b[axis] - a[axis]);
+    let mut p = [0.0; 3];
+    for k in 0..3 {
+        p[k] = a[k] + (b[k] - a[k]) * t;
+    }
+    p[axis] = plane;
+    p
+}
+
 /// A convex polygon being clipped (Sutherland-Hodgman): its corners, and a bit per
 /// corner set when the corner is one of the triangle's own rather than computed.
 #[derive(Clone, Copy)]
@@ -702,14 +715,7 @@ impl Polygon {
                 n += 1;
             }
             if a_in != b_in {
-                let b = &corners[j];
-                let t = (plane - a[axis]) / (b[axis] - a[axis]);
-                let mut p = [0.0; 3];
-                for k in 0..3 {
-                    p[k] = a[k] + (b[k] - a[k]) * t;
-                }
-                p[axis] = plane;
-                *out.corners.get_mut(n)? = p;
+                *out.corners.get_mut(n)? = crossing(a, &corners[j], axis, plane);
                 n += 1;
             }
         }
@@ -751,23 +757,14 @@ impl Polygon {
         let mut fits = [true; 2];
         for (i, a) in corners.iter().enumerate() {
             let j = if i + 1 == len { 0 } else { i + 1 };
-            let mut crossing = None;
+            let mut cut = None;
             for (k, kept) in [below, above].into_iter().enumerate() {
                 let (a_in, b_in) = (kept >> i & 1, kept >> j & 1);
                 if a_in == 1 {
                     fits[k] &= parts[k].push(*a, self.exact >> i & 1);
                 }
                 if a_in != b_in {
-                    let p = *crossing.get_or_insert_with(|| {
-                        let b = &corners[j];
-                        let t = (plane - a[axis]) / (b[axis] - a[axis]);
-                        let mut p = [0.0; 3];
-                        for k in 0..3 {
-                            p[k] = a[k] + (b[k] - a[k]) * t;
-                        }
-                        p[axis] = plane;
-                        p
-                    });
+                    let p = *cut.get_or_insert_with(|| crossing(a, &corners[j], axis, plane));
                     fits[k] &= parts[k].push(p, 0);
                 }
             }
