@@ -299,6 +299,13 @@ pub(super) fn shadow_ray(origin: Vec3, ns: Vec3, target: Vec3) -> Option<(Ray, f
     Some((Ray::new(origin, l, 0.0, dist * (1.0 - 1e-5)), n_dot_l))
 }
 
+/// Where the shadow rays of a hit on `s` start, `epsilon` ([`Shader::offset`]) off the
+/// surface: `None` when the material takes no direct light (no shadow ray leaves it).
+pub(super) fn shadow_origin(s: &Surface, epsilon: f32) -> Option<Vec3> {
+    let m = s.material;
+    (m.diffuse > 0.0 || m.specular > 0.0).then(|| s.p + s.ng * epsilon)
+}
+
 /// Glossy materials reflect in a cone instead of along the mirror direction.
 fn is_glossy(m: &Material) -> bool {
     m.glossiness > 0.0
@@ -306,7 +313,7 @@ fn is_glossy(m: &Material) -> bool {
 
 /// Where a ray hit, prepared for shading.
 pub(super) struct Surface<'m> {
-    p: Vec3,
+    pub(super) p: Vec3,
     /// Geometric normal, facing the incoming ray.
     ng: Vec3,
     /// Shading normal, facing the incoming ray.
@@ -423,13 +430,6 @@ impl<'a> Shader<'a> {
         self.direct_on(ray, s, at, path, None)
     }
 
-    /// Where the shadow rays of `ray`'s hit on `s` start: `None` when the material takes
-    /// no direct light (no shadow ray leaves it).
-    pub(super) fn shadow_origin(&self, ray: &Ray, s: &Surface) -> Option<Vec3> {
-        let m = s.material;
-        (m.diffuse > 0.0 || m.specular > 0.0).then(|| s.p + s.ng * self.offset(ray.org, s.p))
-    }
-
     /// [`Shader::direct`] on a prepared surface. With `point_occluded`, the shadow rays
     /// toward point lights below [`POINT_SHADOW_BITS`] were traced already (bit `k` set
     /// when light `k`'s is occluded; [`shadow_ray`] built them), so they are counted here
@@ -448,7 +448,7 @@ impl<'a> Shader<'a> {
         let mut colour = s.albedo * (settings.ambient * m.diffuse);
         let mut light_bits = 0u64;
 
-        if let Some(origin) = self.shadow_origin(ray, &s) {
+        if let Some(origin) = shadow_origin(&s, epsilon) {
             let view = -ray.dir;
             for (k, light) in self.scene.lights.iter().enumerate() {
                 let count = match light {

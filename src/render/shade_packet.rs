@@ -23,7 +23,7 @@
 use super::sample::{Pcg32, pixel_rng};
 use super::shade::{
     Batching, Bounce, HitSignature, Lit, POINT_SHADOW_BITS, Path, RayCounts, Shader, Spawn,
-    Surface, shadow_ray,
+    Surface, shadow_origin, shadow_ray,
 };
 use super::tiles::sub_pixel_sample;
 use crate::accel::Accel;
@@ -185,8 +185,10 @@ impl<'a> Shader<'a> {
         counts: &mut RayCounts,
     ) -> [u64; LANES] {
         let mut occluded = [0u64; LANES];
-        let origins: [Option<Vec3>; LANES] =
-            std::array::from_fn(|i| self.shadow_origin(rays[i].as_ref()?, surfaces[i].as_ref()?));
+        let origins: [Option<Vec3>; LANES] = std::array::from_fn(|i| {
+            let s = surfaces[i].as_ref()?;
+            shadow_origin(s, self.offset(rays[i].as_ref()?.org, s.p))
+        });
         if origins.iter().all(Option::is_none) {
             return occluded;
         }
