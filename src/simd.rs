@@ -48,6 +48,13 @@ pub fn max_gt(a: Vf, b: Vf) -> Vf {
     a.fast_max(b)
 }
 
+/// The largest absolute component per lane, `max_gt(max_gt(|x|, |y|), |z|)`: the twin
+/// of the scalar `triaccel::max_abs`.
+#[inline]
+pub fn max_abs(v: &[Vf; 3]) -> Vf {
+    max_gt(max_gt(v[0].abs(), v[1].abs()), v[2].abs())
+}
+
 /// A mask with lane `i` set where bit `i` of `bits` is set.
 #[inline]
 pub fn mask_from_bits(bits: u32) -> Mask {

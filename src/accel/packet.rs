@@ -3,7 +3,7 @@
 
 use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
 use crate::scene::CameraFrame;
-use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, max_gt, select, select_u};
+use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, max_abs, select, select_u};
 use glam::Vec3;
 
 /// `LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel: their
@@ -75,8 +75,7 @@ impl RayPacket {
     #[inline]
     pub fn usable(&self) -> Mask {
         let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
-        let d = &self.dir;
-        let d_max = max_gt(max_gt(d[0].abs(), d[1].abs()), d[2].abs());
+        let d_max = max_abs(&self.dir);
         let scaled = d_max.simd_ge(Vf::splat(DIR_MIN)) & d_max.simd_le(Vf::splat(DIR_MAX));
         finite(&self.org) & finite(&self.dir) & scaled & self.t_min.simd_le(self.t_max)
     }

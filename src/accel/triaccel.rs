@@ -83,6 +83,14 @@ pub fn max_gt(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }
 }
 
+/// The largest absolute component, `max_gt(max_gt(|x|, |y|), |z|)`: the order of
+/// [`crate::simd::max_abs`]. The triangle test's error bound grows with it (of the
+/// origin and of the direction), and so do the kd-tree's plane margins.
+#[inline]
+pub fn max_abs(v: Vec3) -> f32 {
+    max_gt(max_gt(v.x.abs(), v.y.abs()), v.z.abs())
+}
+
 /// The answer of the exact edge rule for a ray within the bound of an edge: its hit
 /// (`t`, `u`, `v` from [`watertight::intersect`]) when `t_min < t < t_max`. The scalar
 /// and packet tests both call this one function.
@@ -252,8 +260,7 @@ impl TriAccel {
         let numer = self.n_d - o[k] - self.n_u * o[ku] - self.n_v * o[kv];
         let t = numer / denom;
         let ad = denom.abs();
-        let o_max = max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs());
-        let d_max = max_gt(max_gt(d.x.abs(), d.y.abs()), d.z.abs());
+        let (o_max, d_max) = (max_abs(o), max_abs(d));
         let reach = self.mag + o_max + t.abs() * d_max;
         // Early out, written so that NaN fails: `t` is outside the ray's range by more
         // than it can differ from the exact rule's `t` (`T_SLACK * reach / |denom|`).

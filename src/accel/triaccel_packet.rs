@@ -12,7 +12,7 @@
 
 use super::packet::{LaneHits, RayPacket};
 use super::triaccel::{C1, C2, MOD3, T_SLACK, TriAccel, exact_rule};
-use crate::simd::{LANES, Mask, Vf, bits, mask_from_bits, max_gt, min_lt, none, splat};
+use crate::simd::{LANES, Mask, Vf, bits, mask_from_bits, max_abs, min_lt, none, splat};
 use glam::Vec3;
 
 impl TriAccel {
@@ -34,8 +34,7 @@ impl TriAccel {
         let numer = splat(self.n_d) - o[k] - n_u * o[ku] - n_v * o[kv];
         let t = numer / denom;
         let ad = denom.abs();
-        let o_max = max_gt(max_gt(o[0].abs(), o[1].abs()), o[2].abs());
-        let d_max = max_gt(max_gt(d[0].abs(), d[1].abs()), d[2].abs());
+        let (o_max, d_max) = (max_abs(o), max_abs(d));
         let reach = splat(self.mag) + o_max + t.abs() * d_max;
         let slack = reach * splat(T_SLACK);
         let mask =

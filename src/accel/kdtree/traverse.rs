@@ -13,7 +13,7 @@
 //!   triangle test can round such a ray onto a triangle that lies across the plane (an
 //!   axis-parallel ray through a shared corner, say). For a crossing ray the margin
 //!   becomes an interval in `t`; for a parallel one, a band around the plane. The
-//!   coordinates involved are the ray origin's largest coordinate ([`org_max`], as the
+//!   coordinates involved are the ray origin's largest coordinate ([`max_abs`], as the
 //!   triangle test's error bound has it) and the tree box's largest coordinate on the
 //!   split axis, which bounds every split position on it: the margin is then one number per ray and
 //!   axis, computed once, and a node step costs a subtraction and an addition more than
@@ -28,7 +28,7 @@
 use super::KdTree;
 use super::build::MAX_DEPTH;
 use crate::accel::Accel;
-use crate::accel::triaccel::{max_gt, min_lt};
+use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use glam::Vec3;
@@ -182,7 +182,7 @@ struct RayAxes {
     org: [f32; 4],
     inv: [f32; 4],
     /// Half-width of the band around a split plane where the ray counts as on both
-    /// sides: `(coord_max[axis] + org_max) * PLANE_SLACK`.
+    /// sides: `(coord_max[axis] + max_abs(org)) * PLANE_SLACK`.
     margin: [f32; 4],
     /// `margin / |d|`: the band as an interval of `t` around the split distance.
     slack: [f32; 4],
@@ -197,7 +197,7 @@ impl RayAxes {
     fn new(ray: &Ray, inv_dir: Vec3, coord_max: Vec3) -> RayAxes {
         let four = |v: Vec3| [v.x, v.y, v.z, 0.0];
         let d = four(ray.dir);
-        let margin = (coord_max + Vec3::splat(org_max(ray.org))) * PLANE_SLACK;
+        let margin = (coord_max + Vec3::splat(max_abs(ray.org))) * PLANE_SLACK;
         RayAxes {
             org: four(ray.org),
             inv: four(inv_dir),
@@ -207,15 +207,6 @@ impl RayAxes {
             zero: d.map(|c| c == 0.0),
         }
     }
-}
-
-/// The largest origin coordinate, in the triangle test's order
-/// ([`crate::accel::triaccel`]): the test's rounding grows with it on every axis (a ray
-/// from far away along z can land a hit off in y by that much), so the planes and the
-/// box are widened by it, not by the origin's coordinate on their own axis alone.
-#[inline]
-pub fn org_max(o: Vec3) -> f32 {
-    max_gt(max_gt(o.x.abs(), o.y.abs()), o.z.abs())
 }
 
 /// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`].
@@ -228,7 +219,10 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
         return None;
     }
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
-    let o_max = org_max(ray.org);
+    // The triangle test's rounding grows with the origin's largest coordinate on every
+    // axis (a ray from far away along z can land a hit off in y by that much), so the box
+    // is widened by it, not by the origin's coordinate on its own axis alone.
+    let o_max = max_abs(ray.org);
     for axis in 0..3 {
         let o = ray.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);

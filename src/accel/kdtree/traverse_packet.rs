@@ -31,7 +31,7 @@ use crate::accel::packet::{HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
 use crate::simd::{
-    LANES, Mask, Vf, Vu, any, bits, mask_from_bits, max_gt, min_lt, none, select, splat,
+    LANES, Mask, Vf, Vu, any, bits, mask_from_bits, max_abs, max_gt, min_lt, none, select, splat,
 };
 use std::cell::Cell;
 
@@ -67,13 +67,6 @@ fn next_up(v: Vf) -> Vf {
     select(v.simd_eq(Vf::ZERO), Vf::from_bits(one), r)
 }
 
-/// The packet twin of [`super::traverse::org_max`].
-#[inline]
-fn org_max_packet(rays: &RayPacket) -> Vf {
-    let o = &rays.org;
-    max_gt(max_gt(o[0].abs(), o[1].abs()), o[2].abs())
-}
-
 /// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
 /// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it
 /// (never a lane with a NaN or infinite origin or direction, a zero direction or
@@ -82,7 +75,7 @@ fn org_max_packet(rays: &RayPacket) -> Vf {
 fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf) {
     let (mut t0, mut t1) = (rays.t_min, rays.t_max);
     let mut live = active & rays.usable();
-    let o_max = org_max_packet(rays);
+    let o_max = max_abs(&rays.org);
     for axis in 0..3 {
         let o = rays.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);
@@ -235,7 +228,7 @@ impl KdTree {
         let any_zero = zero.map(|z| any(lanes & z));
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
         let coord_max = self.coord_max();
-        let o_max = org_max_packet(rays);
+        let o_max = max_abs(&rays.org);
         let margins: [Vf; 3] =
             std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
         let slacks: [Vf; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
