@@ -192,7 +192,7 @@ fn obj_forward_index_past_a_group_names_its_line() {
 /// A ray at extreme magnitudes (origin 9.2e36 from the scene along -z, an unnormalised
 /// direction, a `t` range wholly negative) grazing a sliver of a triangle that lies
 /// almost in the plane y = 0 (artifact crash-22fab4bc): brute force hit triangle 2 and
-/// the kd-tree's scalar path missed it. Fixed by the origin margins (`org_max`); the
+/// the kd-tree's scalar path missed it. Fixed by the origin margins (`max_abs` of the origin); the
 /// direction (3.7e19) is now also past `DIR_MAX`, so every path answers "no hit".
 #[test]
 fn kdtree_extreme_grazing_ray_behind_the_origin() {
@@ -237,7 +237,7 @@ fn kdtree_extreme_grazing_ray_behind_the_origin() {
 }
 
 /// Artifact crash-28394ac9 of the `kdtree` target's second run: the kd-tree disagreed with
-/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (`max_abs` of the origin).
 #[test]
 fn kdtree_far_origin_grazing_ray_2() {
     check_kdtree(KdInput {
@@ -281,7 +281,7 @@ fn kdtree_far_origin_grazing_ray_2() {
 }
 
 /// Artifact crash-c3c40412 of the `kdtree` target's second run: the kd-tree disagreed with
-/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (`max_abs` of the origin).
 #[test]
 fn kdtree_far_origin_grazing_ray_3() {
     check_kdtree(KdInput {
@@ -337,7 +337,7 @@ fn kdtree_far_origin_grazing_ray_3() {
 }
 
 /// Artifact crash-cc1a9abd of the `kdtree` target's second run: the kd-tree disagreed with
-/// brute force on a ray at extreme magnitudes; fixed by the origin margins (org_max).
+/// brute force on a ray at extreme magnitudes; fixed by the origin margins (`max_abs` of the origin).
 #[test]
 fn kdtree_far_origin_grazing_ray_4() {
     check_kdtree(KdInput {
