@@ -842,7 +842,7 @@ fn contains(cell: &Aabb, b: &Aabb) -> bool {
 /// Bounds of the part of triangle `tri` inside `cell`, or `None` when they do not meet.
 ///
 /// The triangle is clipped to the cell (Sutherland-Hodgman); when nothing is left,
-/// Akenine-Moller's exact overlap test (on the cell widened by [`CLIP_SLACK`]) has the
+/// Akenine-Moller's exact overlap test (on the cell widened by `CLIP_SLACK`) has the
 /// last word, so rounding in the clipper never drops a triangle that touches the cell.
 /// Corners of the triangle count exactly; points that clipping computed are widened by
 /// a few ulps, and the result is intersected with the cell.
