@@ -80,7 +80,7 @@ fn every_subcommand_warns_once_about_degenerate_triangles() {
         s(&obj),
         "--set",
         "primary",
-        "--out",
+        "-o",
         s(&rays),
         "--width",
         "16",
@@ -88,7 +88,7 @@ fn every_subcommand_warns_once_about_degenerate_triangles() {
         "16",
     ]);
     let hits = dir.join("primary.hits");
-    assert_one_warning(&["trace", s(&toml), "--rays", s(&rays), "--out", s(&hits)]);
+    assert_one_warning(&["trace", s(&toml), "--rays", s(&rays), "-o", s(&hits)]);
     assert_one_warning(&[
         "bench",
         s(&obj),

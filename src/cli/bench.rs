@@ -57,7 +57,7 @@ pub struct Args {
     /// Modes: scalar (one ray at a time), packet (4 consecutive rays).
     #[arg(long, value_delimiter = ',', default_value = "scalar,packet")]
     pub modes: Vec<Mode>,
-    /// Thread counts (default: 1 and every core).
+    /// Thread counts (default: 1 and every core; 0 means every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
     /// Timed passes per measurement (after one warm-up pass).
@@ -248,16 +248,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.repeat == 0 {
         return Err(BadInput("--repeat must be at least 1".into()).into());
     }
+    super::check_outputs([("--json", args.json.as_ref())])?;
     let machine = machine();
-    let mut threads = if args.threads.is_empty() {
+    let mut threads: Vec<usize> = if args.threads.is_empty() {
         vec![1, machine.cores]
     } else {
-        args.threads.clone()
+        args.threads
+            .iter()
+            .map(|&t| super::thread_count(t))
+            .collect()
     };
     threads.dedup();
-    if threads.contains(&0) {
-        return Err(BadInput("--threads: thread counts must be at least 1".into()).into());
-    }
 
     check_size_flags(args.width, args.height)?;
 
@@ -401,10 +402,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             load_average: [load_before, load_after],
             results: rows,
         };
-        let mut text = serde_json::to_string_pretty(&report)?;
-        text.push('\n');
-        rayset::write_atomic(path, text.as_bytes())?;
-        println!("wrote {}", path.display());
+        super::write_json(path, &report)?;
     }
     if !disagreements.is_empty() {
         anyhow::bail!(

@@ -32,11 +32,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = scenes::load(&args.scene)?;
     super::warn(&scene.warnings);
     let geometry = &scene.geometry;
-    let threads = if args.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        args.threads
-    };
+    let threads = super::thread_count(args.threads);
     let params = BuildParams {
         parallel: threads > 1,
         ..args.tree.params()?

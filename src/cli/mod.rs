@@ -6,9 +6,11 @@ pub mod rays;
 pub mod render;
 pub mod trace;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use raypack::accel::kdtree::BuildParams;
 use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
+use std::path::{Path, PathBuf};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -168,11 +170,50 @@ pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchSce
     Ok(scene)
 }
 
+/// The worker threads `--threads N` asks for: `0` means one per core, in every command.
+pub fn thread_count(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+}
+
 /// Prints each loader warning once on stderr.
 pub fn warn(warnings: &[raypack::scene::Warning]) {
     for w in warnings {
         eprintln!("raypack: warning: {w}");
     }
+}
+
+/// Refuses an output that cannot be written (its folder is missing or read-only, or it
+/// names a folder) before any work is done, so a long render or build does not end in a
+/// failed write. Not bad input: exit code 1 with the OS error, as a failed write.
+pub fn check_output(flag: &str, path: &Path) -> anyhow::Result<()> {
+    raypack::output::check_writable(path)
+        .with_context(|| format!("{flag} {}: cannot write there", path.display()))
+}
+
+/// [`check_output`] of each path that is given.
+pub fn check_outputs<'a>(
+    outputs: impl IntoIterator<Item = (&'static str, Option<&'a PathBuf>)>,
+) -> anyhow::Result<()> {
+    for (flag, path) in outputs {
+        if let Some(path) = path {
+            check_output(flag, path)?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON to `path`, whole or not at all, and says so.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    raypack::output::write_bytes_atomic(path, text.as_bytes(), |e| e)
+        .with_context(|| format!("{}: cannot write the report", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
 }
 
 /// 2 when the error was caused by bad input, 1 otherwise.

@@ -145,6 +145,12 @@ pub enum ObjError {
         line: usize,
         texture: PathBuf,
     },
+    #[error("{}: material `{material}`: map_Kd", path.display())]
+    Texture {
+        path: PathBuf,
+        material: String,
+        source: Box<TextureError>,
+    },
     /// `tobj` and raypack's own line scan read the file differently (a reader bug, not
     /// bad input; reported rather than loading a mesh with the wrong prim ids).
     #[error("{}: readers disagree: {message}", path.display())]

@@ -656,12 +656,9 @@ pub fn write_obj(path: &Path, g: &Geometry, rings: u32) -> Result<(), SpdError> 
         }
         next += 8;
     }
-    crate::rayset::write_atomic(path, out.as_bytes()).map_err(|e| match e {
-        crate::rayset::RaySetError::Write { path, source } => SpdError::Write { path, source },
-        other => SpdError::Write {
-            path: path.to_path_buf(),
-            source: std::io::Error::other(other.to_string()),
-        },
+    crate::output::write_bytes_atomic(path, out.as_bytes(), |source| SpdError::Write {
+        path: path.to_path_buf(),
+        source,
     })
 }
 
