@@ -54,22 +54,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let tris = geometry.triangles.len();
     let per_tri = |bytes: usize| bytes as f64 / tris.max(1) as f64;
     println!("scene            {}", args.scene);
+    println!("primitives       {}", super::primitive_counts(geometry));
+    let bounds = geometry.bounds();
+    if bounds.is_empty() {
+        println!("bounds           empty (planes only)");
+    } else {
+        println!("bounds           min {} max {}", bounds.min, bounds.max);
+    }
+    let bounded = tris + geometry.spheres.len() + geometry.boxes.len();
+    let degenerate = bounded - s.build.tree_prims as usize;
     println!(
-        "primitives       {} triangles, {} spheres, {} boxes, {} planes",
-        tris,
-        geometry.spheres.len(),
-        geometry.boxes.len(),
-        geometry.planes.len()
+        "in tree          {} of {} bounded ({} left out; planes are tested beside the tree)",
+        s.build.tree_prims,
+        bounded,
+        super::count(degenerate, "degenerate triangle"),
     );
     println!(
-        "in tree          {} (degenerate triangles left out)",
-        s.build.tree_prims
-    );
-    println!(
-        "build            {:.3} s median of {} on {} thread(s) (min {:.3} s)",
+        "build            {:.3} s median of {} on {} (min {:.3} s)",
         seconds[seconds.len() / 2],
-        seconds.len(),
-        threads,
+        super::count(seconds.len(), "build"),
+        super::count(threads, "thread"),
         seconds[0]
     );
     println!("nodes            {}", s.nodes);

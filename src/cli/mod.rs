@@ -12,6 +12,19 @@ use raypack::accel::kdtree::BuildParams;
 use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
 use std::path::{Path, PathBuf};
 
+#[cfg(test)]
+mod tests {
+    use super::count;
+
+    #[test]
+    fn counts_are_singular_for_one() {
+        assert_eq!(count(1, "triangle"), "1 triangle");
+        assert_eq!(count(0, "triangle"), "0 triangles");
+        assert_eq!(count(1, "box"), "1 box");
+        assert_eq!(count(2, "box"), "2 boxes");
+    }
+}
+
 #[derive(Parser, Debug)]
 #[command(
     name = "raypack",
@@ -158,12 +171,9 @@ pub fn check_size_flags(width: u32, height: u32) -> Result<(), BadInput> {
 pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchScene> {
     let scene = raypack::rayset::scenes::load(arg)?;
     eprintln!(
-        "{}: {} triangles, {} spheres, {} boxes, {} planes (loaded in {:.2} s)",
+        "{}: {} (loaded in {:.2} s)",
         scene.name,
-        scene.geometry.triangles.len(),
-        scene.geometry.spheres.len(),
-        scene.geometry.boxes.len(),
-        scene.geometry.planes.len(),
+        primitive_counts(&scene.geometry),
         scene.load_seconds
     );
     warn(&scene.warnings);
@@ -177,6 +187,25 @@ pub fn thread_count(threads: usize) -> usize {
     } else {
         threads
     }
+}
+
+/// `1 triangle`, `2 triangles`: a count with its noun in the singular where it is 1.
+/// `noun` is the singular; the plural adds `s`, or `es` after `x` (`boxes`).
+pub fn count(n: usize, noun: &str) -> String {
+    let plural = if noun.ends_with('x') { "es" } else { "s" };
+    format!("{n} {noun}{}", if n == 1 { "" } else { plural })
+}
+
+/// The primitives of `geometry`, each kind named, e.g. `1 triangle, 0 spheres, 2 boxes,
+/// 1 plane`.
+pub fn primitive_counts(geometry: &raypack::scene::Geometry) -> String {
+    [
+        count(geometry.triangles.len(), "triangle"),
+        count(geometry.spheres.len(), "sphere"),
+        count(geometry.boxes.len(), "box"),
+        count(geometry.planes.len(), "plane"),
+    ]
+    .join(", ")
 }
 
 /// Prints each loader warning once on stderr.
