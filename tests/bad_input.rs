@@ -896,6 +896,54 @@ fn every_corpus_file_has_a_case() {
     }
 }
 scene_case!(
+    rotate_both_forms,
+    "rotate_both_forms.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate", "not both"]
+);
+scene_case!(
+    rotate_zero_axis,
+    "rotate_zero_axis.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate_axis", "the axis is zero"]
+);
+scene_case!(
+    rotate_wrong_length,
+    "rotate_wrong_length.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate", "array of 3 numbers"]
+);
+scene_case!(
+    rotate_nan_angle,
+    "rotate_nan_angle.toml",
+    SceneError::Invalid { .. },
+    8,
+    ["meshes[0].rotate_angle", "not a finite number"]
+);
+scene_case!(
+    rotate_angle_without_axis,
+    "rotate_angle_without_axis.toml",
+    SceneError::Invalid { .. },
+    7,
+    [
+        "meshes[0].rotate_axis",
+        "`rotate_angle` needs `rotate_axis`"
+    ]
+);
+scene_case!(
+    rotate_axis_without_angle,
+    "rotate_axis_without_angle.toml",
+    SceneError::Invalid { .. },
+    5,
+    [
+        "meshes[0].rotate_angle",
+        "`rotate_axis` needs `rotate_angle`"
+    ]
+);
+scene_case!(
     deep_dotted_key_names_its_line,
     "deep_dotted_key.toml",
     SceneError::Syntax { .. },
