@@ -53,7 +53,10 @@ pub enum SceneError {
         key: String,
         source: Box<ObjError>,
     },
-    #[error("{}:{line}: {key}: cannot load the texture", path.display())]
+    /// A texture named by the scene (or by an MTL file of one of its meshes) that cannot
+    /// be used. The message names only the place in the scene file; the texture's own
+    /// error, next in the chain, says what is wrong with which file.
+    #[error("{}:{line}: {key}", path.display())]
     Texture {
         path: PathBuf,
         line: usize,
@@ -157,7 +160,8 @@ pub enum ObjError {
     },
 }
 
-/// An image texture that cannot be used.
+/// An image texture that cannot be used. The format is read from the file's first bytes,
+/// never from its name, so each message says what the file is.
 #[derive(Debug, thiserror::Error)]
 pub enum TextureError {
     #[error("{}: cannot read texture", path.display())]
@@ -165,10 +169,21 @@ pub enum TextureError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{}: cannot decode texture", path.display())]
+    #[error("{}: texture file is empty", path.display())]
+    Empty { path: PathBuf },
+    /// Bytes that no image format starts with; `what` says what they look like instead
+    /// (text, a PDF document, or the first bytes in hex).
+    #[error("{}: {what}, not a PNG, JPEG or TGA image", path.display())]
+    NotAnImage { path: PathBuf, what: String },
+    /// An image in a format that raypack does not decode (GIF, WebP, OpenEXR ...).
+    #[error("{}: {format} image; textures must be PNG, JPEG or TGA", path.display())]
+    Unsupported { path: PathBuf, format: &'static str },
+    /// A file that starts as a `format` image but does not decode (truncated, corrupt).
+    #[error("{}: cannot decode {format} texture", path.display())]
     Decode {
         path: PathBuf,
-        source: image::ImageError,
+        format: &'static str,
+        source: DecodeError,
     },
     #[error("{}: texture is {width}x{height}; each side must be 1 to {max} texels", path.display())]
     Size {
@@ -178,6 +193,24 @@ pub enum TextureError {
         max: u32,
     },
 }
+
+/// Why a decoder rejected an image: the innermost message of `image`'s error, whose own
+/// messages repeat their causes ("Format error decoding Png: X" with source X), so a
+/// chain printed in full would say X twice.
+#[derive(Debug)]
+pub struct DecodeError(pub image::ImageError);
+
+impl std::fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut innermost: &dyn std::error::Error = &self.0;
+        while let Some(cause) = innermost.source() {
+            innermost = cause;
+        }
+        write!(f, "{innermost}")
+    }
+}
+
+impl std::error::Error for DecodeError {}
 
 /// Something in user data that raypack accepts but the user should hear about. Loaders
 /// return these beside what they built; the CLI prints each once on stderr.

@@ -13,7 +13,7 @@ pub mod spd;
 pub mod texture;
 
 pub use camera::{Camera, CameraFrame};
-pub use error::{ObjError, SceneError, TextureError, Warning};
+pub use error::{DecodeError, ObjError, SceneError, TextureError, Warning};
 pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere};
 pub use light::Light;
 pub use material::Material;
