@@ -30,9 +30,12 @@ pub const MAX_SIDE: u32 = 16384;
 /// Largest pixel count a scene may ask for (8192 x 8192). The CLI holds its `--width`
 /// and `--height` flags and the ray sets to the same limits, so no way in asks for more.
 pub const MAX_PIXELS: u64 = 1 << 26;
-/// Limits on recursion depth and per-point sample counts.
+/// Largest `max_depth` (reflection and refraction bounces) a scene may ask for.
 pub const MAX_DEPTH: u32 = 64;
+/// Largest per-point sample count (`glossy_samples`, an area light's `samples`): the
+/// work per shading point grows linearly with it.
 pub const MAX_SAMPLES: u32 = 4096;
+/// Largest `antialias_n`: `n x n` rays per pixel, so 256 at most.
 pub const MAX_ANTIALIAS_N: u32 = 16;
 /// Largest side of a generated texture.
 pub const MAX_PROCEDURAL_SIDE: u32 = 4096;

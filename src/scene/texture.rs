@@ -11,9 +11,13 @@ use std::fs::File;
 use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
+/// An image in linear RGB, decoded or generated once at load time so that lookups while
+/// rendering only read memory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
+    /// Texels per row; at least 1 for any texture that is sampled.
     pub width: u32,
+    /// Rows; `texels.len() == width * height`.
     pub height: u32,
     /// Row-major, row 0 at `v = 0`.
     pub texels: Vec<Vec3>,
@@ -258,25 +262,43 @@ impl Texture {
 pub enum Procedural {
     /// `squares x squares` alternating squares of `a` and `b`, `a` at texel (0, 0).
     /// Tiles seamlessly when `squares` is even.
-    Checker { squares: u32, a: Vec3, b: Vec3 },
+    Checker {
+        /// Squares along each side.
+        squares: u32,
+        /// Colour of the square at texel (0, 0) and its diagonal neighbours.
+        a: Vec3,
+        /// Colour of the other squares.
+        b: Vec3,
+    },
     /// A running-bond brick wall: `rows` courses of `columns` bricks, every other course
     /// shifted by half a brick, joints `mortar` (a fraction of a course's height) wide.
     /// Bricks vary slightly in shade, from `seed`. Tiles seamlessly.
     Bricks {
+        /// Courses of bricks from bottom to top.
         rows: u32,
+        /// Bricks per course.
         columns: u32,
+        /// Joint width as a fraction of a course's height, in `[0, 0.5]`.
         mortar: f32,
+        /// Mean colour of a brick; each brick's shade varies around it.
         brick: Vec3,
+        /// Colour of the joints.
         mortar_color: Vec3,
+        /// Chooses the shade of every brick.
         seed: u32,
     },
     /// Marble: `a` with veins of `b` running along v, bent by `turbulence` times a sum of
     /// periodic value noise of base frequency `scale` (so the texture tiles).
     Marble {
+        /// Veins across the texture, and the noise's base frequency.
         scale: u32,
+        /// How far the noise bends the veins; 0 gives straight stripes.
         turbulence: f32,
+        /// Colour of the stone.
         a: Vec3,
+        /// Colour of the veins.
         b: Vec3,
+        /// Chooses the noise.
         seed: u32,
     },
 }
