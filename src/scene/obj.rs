@@ -36,6 +36,7 @@ use std::path::{Path, PathBuf};
 /// A triangle mesh loaded from an OBJ file (see the module invariants).
 #[derive(Clone, Debug, Default)]
 pub struct ObjMesh {
+    /// Vertex positions (`v` lines), in file order; all finite.
     pub positions: Vec<Vec3>,
     /// Corner indices into `positions`, in file order (the prim ids of RAYS.md).
     pub triangles: Vec<[u32; 3]>,
@@ -59,6 +60,7 @@ pub struct ObjMesh {
 /// The part of an MTL material that raypack uses.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjMaterial {
+    /// The `newmtl` name that `usemtl` refers to.
     pub name: String,
     /// `Kd` (default 0.8 grey when the material has none).
     pub diffuse: Vec3,
