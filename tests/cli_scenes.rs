@@ -166,3 +166,31 @@ fn json_report_counts_what_the_summary_prints() {
     assert!(v["mrays_per_second"].as_f64().unwrap() > 0.0);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_scene_without_lights_renders_with_a_warning() {
+    let dir = scratch("dark");
+    let scene = dir.join("dark.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0.0, 0.0, -5.0]\ntarget = [0.0, 0.0, 0.0]\n\
+         [[spheres]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\n",
+    )
+    .unwrap();
+    let png = dir.join("dark.png");
+    let out = raypack(&[
+        "render",
+        s(&scene),
+        "-o",
+        s(&png),
+        "--width",
+        "16",
+        "--height",
+        "16",
+    ]);
+    check(&out, "a scene without lights");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.matches("no lights").count(), 1, "{stderr}");
+    assert_eq!(brightness(&std::fs::read(&png).unwrap()), 0.0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -15,8 +15,9 @@ pub struct Args {
     /// The hits file to write (closest hits, whatever the set).
     #[arg(short, long, value_name = "OUT", alias = "out")]
     pub output: PathBuf,
-    /// scalar: one ray at a time; packet: 4 consecutive rays per packet.
-    #[arg(long, default_value = "scalar")]
+    /// scalar: one ray at a time; packet: 4 consecutive rays per packet (the default,
+    /// as in `render`); both write the same hits.
+    #[arg(long, default_value = "packet")]
     pub mode: Mode,
 }
 

@@ -226,10 +226,15 @@ pub enum ObjError {
         /// The texture, resolved against the MTL file's folder.
         texture: PathBuf,
     },
+    /// A `map_Kd` texture that exists but cannot be used (a scene built straight from an
+    /// OBJ file, [`crate::scene::Scene::from_obj`]).
     #[error("{}: material `{material}`: map_Kd", path.display())]
     Texture {
+        /// The OBJ file.
         path: PathBuf,
+        /// The MTL material whose texture it is.
         material: String,
+        /// What is wrong with the texture; names the texture file.
         source: Box<TextureError>,
     },
     /// `tobj` and raypack's own line scan read the file differently (a reader bug, not
