@@ -17,6 +17,7 @@ use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
 use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
 use raypack::scene::Geometry;
+use raypack::simd::{Simd, W4, W8, W16};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -54,9 +55,11 @@ pub struct Args {
     /// Ray sets to trace (primary, shadow, diffuse).
     #[arg(long, value_delimiter = ',', default_value = "primary,shadow,diffuse")]
     pub sets: Vec<String>,
-    /// Modes: scalar (one ray at a time), packet (4 consecutive rays).
-    #[arg(long, value_delimiter = ',', default_value = "scalar,packet")]
-    pub modes: Vec<Mode>,
+    /// Modes: scalar (one ray at a time), packet4, packet8, packet16 (4, 8 or 16
+    /// consecutive rays, one SIMD lane each), packet (the widest this CPU runs natively)
+    /// or all.
+    #[arg(long, default_value = "scalar,packet", value_parser = |s: &str| Mode::parse_list(s).map(Modes))]
+    pub modes: Modes,
     /// Thread counts (default: 1 and every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
@@ -80,6 +83,10 @@ pub struct Args {
     pub tree: super::TreeArgs,
 }
 
+/// `--modes`: a comma-separated list, `all` standing for every mode.
+#[derive(Clone, Debug)]
+pub struct Modes(pub Vec<Mode>);
+
 #[derive(Serialize, Debug)]
 pub struct Machine {
     pub cpu: String,
@@ -91,6 +98,10 @@ pub struct Machine {
 pub struct Row {
     pub set: String,
     pub mode: String,
+    /// SIMD lanes of the kernels (1 for scalar).
+    pub width: usize,
+    /// Rays traced together.
+    pub packet_size: usize,
     pub threads: usize,
     pub rays: usize,
     pub mrays_median: f64,
@@ -114,9 +125,10 @@ pub struct Report {
     pub height: u32,
     pub light: [f64; 3],
     pub light_source: String,
-    /// Per set: packets of 4 consecutive rays whose lanes disagree on a direction sign
-    /// (the packet path traces them as one group per sign octant), and all packets.
-    pub split_packets: std::collections::BTreeMap<String, [usize; 2]>,
+    /// Per set and packet mode: packets whose lanes disagree on a direction sign (the
+    /// packet path traces them as one group per sign octant), and all packets.
+    pub split_packets:
+        std::collections::BTreeMap<String, std::collections::BTreeMap<String, [usize; 2]>>,
     /// 1-minute load average before and after the timed passes.
     pub load_average: [f64; 2],
     pub results: Vec<Row>,
@@ -132,15 +144,23 @@ fn set_named<'s>(sets: &'s StandardSets, name: &str) -> &'s RaySet {
     }
 }
 
-/// `[split, total]`: the packets of 4 consecutive rays of `set` (as the packet mode
+/// `[split, total]`: the packets of `mode` (consecutive rays of `set`, as the mode
 /// traces them) whose lanes disagree on a direction sign, and all of them.
-fn split_packets(set: &RaySet) -> [usize; 2] {
-    let packets = set.rays.chunks(raypack::simd::LANES);
-    let total = packets.len();
-    let split = packets
-        .filter(|quad| sign_group_count(&RayPacket::from_rays(quad)) > 1)
-        .count();
-    [split, total]
+fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
+    fn of<W: Simd>(set: &RaySet) -> [usize; 2] {
+        let packets = set.rays.chunks(W::LANES);
+        let total = packets.len();
+        let split = packets
+            .filter(|group| sign_group_count(&RayPacket::<W>::from_rays(group)) > 1)
+            .count();
+        [split, total]
+    }
+    match mode {
+        Mode::Scalar => [0, set.len()],
+        Mode::Packet4 => of::<W4>(set),
+        Mode::Packet8 => of::<W8>(set),
+        Mode::Packet16 => of::<W16>(set),
+    }
 }
 
 /// CPU model, logical cores and the SIMD level this binary was built for.
@@ -303,27 +323,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sets.light_source.describe(),
         sets.offset
     );
-    let split_packets: Vec<(String, [usize; 2])> = args
+    let packet_modes: Vec<Mode> = args
+        .modes
+        .0
+        .iter()
+        .copied()
+        .filter(|&m| m != Mode::Scalar)
+        .collect();
+    let split_packets: std::collections::BTreeMap<
+        String,
+        std::collections::BTreeMap<String, [usize; 2]>,
+    > = args
         .sets
         .iter()
-        .map(|name| (name.clone(), split_packets(set_named(&sets, name))))
+        .map(|name| {
+            let set = set_named(&sets, name);
+            let per_mode = packet_modes
+                .iter()
+                .map(|&m| (m.to_string(), split_packets(set, m)))
+                .collect();
+            (name.clone(), per_mode)
+        })
         .collect();
-    if args.modes.contains(&Mode::Packet) {
+    for mode in &packet_modes {
         let shares: Vec<String> = split_packets
             .iter()
-            .map(|(name, [split, total])| {
-                let share = 100.0 * *split as f64 / (*total).max(1) as f64;
+            .map(|(name, per_mode)| {
+                let [split, total] = per_mode[&mode.to_string()];
+                let share = 100.0 * split as f64 / total.max(1) as f64;
                 format!("{name} {split} of {total} ({share:.1}%)")
             })
             .collect();
         println!(
-            "packets split by direction signs (traced as one group per sign octant): {}",
+            "{mode}: packets split by direction signs (traced as one group per sign octant): {}",
             shares.join(", ")
         );
     }
     println!(
-        "{:<8} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
-        "set", "mode", "threads", "rays", "median", "min", "max"
+        "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
+        "set", "mode", "width", "packet", "threads", "rays", "median", "min", "max"
     );
 
     let pools = threads
@@ -341,7 +379,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let mut first: Option<Checksum> = None;
         for (t, pool) in &pools {
-            for &mode in &args.modes {
+            for &mode in &args.modes.0 {
                 let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
                 let agrees = *first.get_or_insert(checksum) == checksum;
                 if !agrees {
@@ -353,9 +391,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
                 let med = median(&mut rates);
                 println!(
-                    "{:<8} {:<7} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
+                    "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
                     name,
                     mode,
+                    mode.width(),
+                    mode.packet_size(),
                     t,
                     set.len(),
                     med,
@@ -367,6 +407,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rows.push(Row {
                     set: name.clone(),
                     mode: mode.to_string(),
+                    width: mode.width(),
+                    packet_size: mode.packet_size(),
                     threads: *t,
                     rays: set.len(),
                     mrays_median: med,
@@ -397,7 +439,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             height: sets.primary.height,
             light: sets.light.to_array(),
             light_source: sets.light_source.describe().to_string(),
-            split_packets: split_packets.into_iter().collect(),
+            split_packets,
             load_average: [load_before, load_after],
             results: rows,
         };

@@ -27,10 +27,11 @@
 
 use super::KdTree;
 use super::build::MAX_DEPTH;
-use crate::accel::Accel;
 use crate::accel::triaccel::{max_abs, max_gt, min_lt};
+use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
+use crate::simd::{LaneBits, W4, W8, W16};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -264,11 +265,27 @@ impl Accel for KdTree {
         self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
     }
 
-    fn intersect_packet(&self, rays: &crate::accel::RayPacket) -> crate::accel::HitPacket {
+    fn intersect_packet4(&self, rays: &RayPacket<W4>) -> HitPacket<W4> {
         KdTree::intersect_packet(self, rays)
     }
 
-    fn occluded_packet(&self, rays: &crate::accel::RayPacket) -> u32 {
+    fn intersect_packet8(&self, rays: &RayPacket<W8>) -> HitPacket<W8> {
+        KdTree::intersect_packet(self, rays)
+    }
+
+    fn intersect_packet16(&self, rays: &RayPacket<W16>) -> HitPacket<W16> {
+        KdTree::intersect_packet(self, rays)
+    }
+
+    fn occluded_packet4(&self, rays: &RayPacket<W4>) -> LaneBits {
+        KdTree::occluded_packet(self, rays)
+    }
+
+    fn occluded_packet8(&self, rays: &RayPacket<W8>) -> LaneBits {
+        KdTree::occluded_packet(self, rays)
+    }
+
+    fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
         KdTree::occluded_packet(self, rays)
     }
 }
