@@ -270,8 +270,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     assert_eq!(v["spheres"], 91);
     assert!(v["build_seconds"].as_f64().unwrap() >= 0.0);
     let rows = v["results"].as_array().unwrap();
-    assert_eq!(rows.len(), 3 * 4 * 2, "sets x modes x thread counts");
-    let modes: Vec<_> = rows[..4]
+    assert_eq!(rows.len(), 3 * 5 * 2, "sets x modes x thread counts");
+    let modes: Vec<_> = rows[..5]
         .iter()
         .map(|r| {
             (
@@ -287,7 +287,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
             ("scalar", 1, 1),
             ("packet4", 4, 4),
             ("packet8", 8, 8),
-            ("packet16", 16, 16)
+            ("packet16", 16, 16),
+            ("tile64", raypack::accel::tile_lanes() as u64, 64)
         ],
         "every mode with its width and packet size"
     );
@@ -309,7 +310,12 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     }
     assert_eq!(rows[0]["rays"], 32 * 32);
     // Camera quads rarely disagree on a direction sign, cosine bounces nearly always.
-    for (mode, lanes) in [("packet4", 4), ("packet8", 8), ("packet16", 16)] {
+    for (mode, lanes) in [
+        ("packet4", 4),
+        ("packet8", 8),
+        ("packet16", 16),
+        ("tile64", 64),
+    ] {
         let split = |set: &str| {
             let pair = v["split_packets"][set][mode].as_array().unwrap();
             (pair[0].as_u64().unwrap(), pair[1].as_u64().unwrap())

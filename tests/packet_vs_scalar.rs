@@ -23,6 +23,7 @@ use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::PacketWidth;
 use raypack::accel::kdtree::traverse_packet::packet_split_count;
+use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::accel::packet::{HitPacket, LaneHits, RayPacket, quad_order};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
@@ -429,6 +430,27 @@ fn hit_bits(h: Option<Hit>) -> Option<[u32; 4]> {
     h.map(|h| [h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()])
 }
 
+/// One ray's closest hit (a miss as [`Hit::MISS`]) and any-hit answer against the
+/// scalar path's, bit for bit.
+fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: &str) {
+    let want = tree.intersect(r);
+    let have = got.is_hit().then_some(got);
+    assert_eq!(
+        hit_bits(have),
+        hit_bits(want),
+        "{at}\n  ray: {}\n  scalar: {}\n  packet: {}",
+        show(r),
+        show_hit(want),
+        show_hit(have)
+    );
+    assert_eq!(
+        occluded,
+        tree.occluded(r),
+        "{at}: any-hit\n  ray: {}",
+        show(r)
+    );
+}
+
 /// Closest hits and any-hit answers of `tree`'s packet path against its scalar path,
 /// for every active lane of every packet. Returns the number of lanes that hit.
 /// Runs through the [`raypack::accel::Accel`] entry point of width `W`, as the tracers do.
@@ -453,26 +475,37 @@ fn assert_tree_matches<W: PacketWidth>(
                 assert_eq!(occluded & (1 << i), 0, "{what}: inactive lane {i} occluded");
                 continue;
             };
-            let want = tree.intersect(r);
-            let have = lane.is_hit().then_some(lane);
-            hits += have.is_some() as usize;
-            assert_eq!(
-                hit_bits(have),
-                hit_bits(want),
-                "{what}: packet {n} lane {i}\n  ray: {}\n  scalar: {}\n  packet: {}",
-                show(r),
-                show_hit(want),
-                show_hit(have)
-            );
-            assert_eq!(
-                occluded & (1 << i) != 0,
-                tree.occluded(r),
-                "{what}: any-hit, packet {n} lane {i}\n  ray: {}",
-                show(r)
-            );
+            hits += lane.is_hit() as usize;
+            let at = format!("{what}: packet {n} lane {i}");
+            assert_ray_matches(tree, r, lane, occluded & (1 << i) != 0, &at);
         }
     }
     hits
+}
+
+/// Closest hits and any-hit answers of `tree`'s ray tiles ([`TILE_RAYS`] consecutive
+/// rays of `rays`, groups of `W::LANES` sharing an entry point) against its scalar path.
+/// Returns the nodes the tiles descended together (their entry depths), summed.
+fn assert_tiles_match<W: Simd>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
+    let what = &format!("{what} (tiles of {} lanes)", W::LANES);
+    let before = tile_counts();
+    for (n, tile) in rays.chunks(TILE_RAYS).enumerate() {
+        let mut got = vec![Hit::MISS; tile.len()];
+        tree.intersect_tile::<W>(tile, &mut got);
+        let occluded = tree.occluded_tile::<W>(tile);
+        for (i, r) in tile.iter().enumerate() {
+            let at = format!("{what}: tile {n} ray {i}");
+            assert_ray_matches(tree, r, got[i], occluded & (1 << i) != 0, &at);
+        }
+        let past = occluded.checked_shr(tile.len() as u32).unwrap_or(0);
+        assert_eq!(past, 0, "{what}: bits past the tile");
+    }
+    tile_counts().entry_depth - before.entry_depth
+}
+
+/// The rays of packets (active lanes only), in order.
+fn flatten(packets: &[Vec<Option<Ray>>]) -> Vec<Ray> {
+    packets.iter().flatten().flatten().copied().collect()
 }
 
 /// `rays` a packet width at a time; with `rng`, some lanes made inactive (NaN).
@@ -621,6 +654,22 @@ fn check_tree_scene_at<W: PacketWidth>(
     );
     let shadows = shadow_packets::<W>(&tree, &quads, light, 1e-4 * b.diagonal());
     assert_tree_matches::<W>(&tree, &shadows, &format!("{what}, shadows"));
+    if W::LANES >= 8 {
+        // Ray tiles of the same rays: camera rays in packet order (16x4 pixel blocks),
+        // random, adversarial, coherent and shadow rays.
+        let frame = camera.frame(128, 96);
+        let camera_rays: Vec<Ray> = quad_order(128, 96)
+            .into_iter()
+            .flat_map(|(x, y)| RayPacket::<W4>::camera_block(&frame, x, y))
+            .collect();
+        assert_tiles_match::<W>(&tree, &camera_rays, &format!("{what}, camera"));
+        assert_tiles_match::<W>(&tree, &random, &format!("{what}, random"));
+        assert_tiles_match::<W>(&tree, &adversarial, &format!("{what}, adversarial"));
+        let coherent = flatten(&coherent);
+        assert_tiles_match::<W>(&tree, &coherent, &format!("{what}, coherent"));
+        let shadows = flatten(&shadows);
+        assert_tiles_match::<W>(&tree, &shadows, &format!("{what}, shadows"));
+    }
 }
 
 #[test]
@@ -721,6 +770,19 @@ fn check_shared_scene_at<W: PacketWidth>(
     let light = Vec3::new((b.min.x + b.max.x) * 0.5, b.max.y * 0.9, b.min.z * 0.3);
     let shadows = shadow_packets::<W>(tree, &quads, light, 1e-4 * b.diagonal());
     assert_tree_matches::<W>(tree, &shadows, &format!("{name}, shadows"));
+    if W::LANES >= 8 {
+        let flat: Vec<Ray> = quads.iter().flatten().copied().collect();
+        let depth = assert_tiles_match::<W>(tree, &flat, &format!("{name}, camera"));
+        println!(
+            "{name}, {} lanes: camera tiles descended {depth} nodes together",
+            W::LANES
+        );
+        assert!(
+            depth > 0,
+            "{name}: no camera tile shared an entry point below the root"
+        );
+        assert_tiles_match::<W>(tree, &flatten(&shadows), &format!("{name}, shadows"));
+    }
     let mut rng = Rng::new(name.len() as u64);
     let random = camera_rays(camera, 64, 48, 1)
         .into_iter()

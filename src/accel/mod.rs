@@ -66,6 +66,23 @@ pub trait Accel: Sync {
     fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
         occluded_lane_by_lane(self, rays)
     }
+
+    /// Closest hits of a tile of up to 64 coherent rays into `out` (same length), misses
+    /// as [`Hit::MISS`]; the kd-tree traces them as SIMD groups sharing one entry point.
+    fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
+        for (r, h) in rays.iter().zip(out.iter_mut()) {
+            *h = self.intersect(r).unwrap_or(Hit::MISS);
+        }
+    }
+
+    /// Bit `i` set when ray `i` of a tile of up to 64 rays is occluded.
+    fn occluded_tile(&self, rays: &[Ray]) -> u64 {
+        let mut bits = 0;
+        for (i, r) in rays.iter().enumerate() {
+            bits |= (self.occluded(r) as u64) << i;
+        }
+        bits
+    }
 }
 
 /// The packet entry points' default: each active lane through the single-ray method.
@@ -99,11 +116,20 @@ pub enum Mode {
     Packet8,
     /// 16 consecutive rays per packet (AVX-512 registers).
     Packet16,
+    /// 64 consecutive rays as one tile of SIMD groups of the native width, sharing an
+    /// entry point ([`kdtree::traverse_tile`]).
+    Tile64,
 }
 
 impl Mode {
     /// Every mode, narrowest first.
-    pub const ALL: [Mode; 4] = [Mode::Scalar, Mode::Packet4, Mode::Packet8, Mode::Packet16];
+    pub const ALL: [Mode; 5] = [
+        Mode::Scalar,
+        Mode::Packet4,
+        Mode::Packet8,
+        Mode::Packet16,
+        Mode::Tile64,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -111,6 +137,7 @@ impl Mode {
             Mode::Packet4 => "packet4",
             Mode::Packet8 => "packet8",
             Mode::Packet16 => "packet16",
+            Mode::Tile64 => "tile64",
         }
     }
 
@@ -121,12 +148,26 @@ impl Mode {
             Mode::Packet4 => 4,
             Mode::Packet8 => 8,
             Mode::Packet16 => 16,
+            Mode::Tile64 => 64,
         }
     }
 
     /// SIMD lanes of the kernels (1 for scalar).
     pub fn width(self) -> usize {
-        self.packet_size()
+        match self {
+            Mode::Tile64 => tile_lanes(),
+            _ => self.packet_size(),
+        }
+    }
+
+    /// The packet mode that traces this mode's SIMD groups one at a time: a tile's
+    /// groups for [`Mode::Tile64`], the mode itself otherwise.
+    pub fn group_mode(self) -> Mode {
+        match (self, tile_lanes()) {
+            (Mode::Tile64, 16) => Mode::Packet16,
+            (Mode::Tile64, _) => Mode::Packet8,
+            (m, _) => m,
+        }
     }
 
     /// The packet mode of the widest registers this CPU runs natively.
@@ -169,11 +210,17 @@ impl std::str::FromStr for Mode {
             "packet4" => Ok(Mode::Packet4),
             "packet8" => Ok(Mode::Packet8),
             "packet16" => Ok(Mode::Packet16),
+            "tile64" => Ok(Mode::Tile64),
             _ => Err(format!(
-                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, packet or all)"
+                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, tile64, packet or all)"
             )),
         }
     }
+}
+
+/// Lanes of a tile's SIMD groups: 16 with AVX-512, else 8.
+pub fn tile_lanes() -> usize {
+    native_lanes().max(8)
 }
 
 /// A width the accelerators trace packets at: maps `W` to its [`Accel`] method.

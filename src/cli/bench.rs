@@ -12,7 +12,9 @@ use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::RayPacket;
 use raypack::accel::kdtree::traverse_packet::sign_group_count;
+use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, TileCounts, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::ray::Ray;
 use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
 use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
@@ -160,6 +162,16 @@ fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
         Mode::Packet4 => of::<W4>(set),
         Mode::Packet8 => of::<W8>(set),
         Mode::Packet16 => of::<W16>(set),
+        Mode::Tile64 => {
+            let tiles = set.rays.chunks(TILE_RAYS);
+            let total = tiles.len();
+            let mixed = |tile: &[Ray]| {
+                (0..3).any(|a| {
+                    tile.iter().any(|r| r.dir[a] < 0.0) && tile.iter().any(|r| r.dir[a] > 0.0)
+                })
+            };
+            [tiles.filter(|t| mixed(t)).count(), total]
+        }
     }
 }
 
@@ -220,6 +232,17 @@ fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
         })
         .build()
         .context("starting the tracing threads")
+}
+
+/// The tile counts of every thread of `pool`, summed.
+fn pool_tile_counts(pool: &rayon::ThreadPool) -> TileCounts {
+    pool.broadcast(|_| tile_counts())
+        .into_iter()
+        .fold(TileCounts::default(), |a, c| TileCounts {
+            tiles: a.tiles + c.tiles,
+            fallbacks: a.fallbacks + c.fallbacks,
+            entry_depth: a.entry_depth + c.entry_depth,
+        })
 }
 
 /// Median of a non-empty list.
@@ -370,6 +393,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut rows = Vec::new();
     let mut disagreements = Vec::new();
+    let mut tile_notes = Vec::new();
     let load_before = load_average();
     for name in &args.sets {
         let set = set_named(&sets, name);
@@ -380,7 +404,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut first: Option<Checksum> = None;
         for (t, pool) in &pools {
             for &mode in &args.modes.0 {
+                let tiles_before = pool_tile_counts(pool);
                 let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
+                if mode == Mode::Tile64 {
+                    let (now, was) = (pool_tile_counts(pool), tiles_before);
+                    let tiles = (now.tiles - was.tiles).max(1) as f64;
+                    tile_notes.push(format!(
+                        "{name} {t} threads: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
+                        100.0 * (now.fallbacks - was.fallbacks) as f64 / tiles,
+                        (now.entry_depth - was.entry_depth) as f64 / tiles
+                    ));
+                }
                 let agrees = *first.get_or_insert(checksum) == checksum;
                 if !agrees {
                     disagreements.push(format!("{name} {mode} {t} threads"));
@@ -420,6 +454,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let load_after = load_average();
+    for note in &tile_notes {
+        println!("tile64, {note}");
+    }
     println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
     if let Some(path) = &args.json {
         let report = Report {

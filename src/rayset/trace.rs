@@ -9,6 +9,7 @@
 //! cannot be optimised away and two modes or two tracers can be compared.
 
 pub use crate::accel::Mode;
+use crate::accel::kdtree::traverse_tile::TILE_RAYS;
 use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::simd::{MAX_LANES, Uint, W4, W8, W16};
@@ -18,7 +19,7 @@ use std::fmt;
 /// Rays per unit of work handed to a thread (the harness's chunk size).
 pub const CHUNK: usize = 4096;
 
-const _: () = assert!(CHUNK.is_multiple_of(MAX_LANES));
+const _: () = assert!(CHUNK.is_multiple_of(MAX_LANES) && CHUNK.is_multiple_of(TILE_RAYS));
 
 /// Closest hit or any hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +80,11 @@ pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, ou
         Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, out),
         Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, out),
         Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, out),
+        Mode::Tile64 => {
+            for (tile, ht) in rays.chunks(TILE_RAYS).zip(out.chunks_mut(TILE_RAYS)) {
+                accel.intersect_tile(tile, ht);
+            }
+        }
     }
 }
 
@@ -122,6 +128,20 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
         (Mode::Packet4, _) => return checksum_packets::<A, W4>(accel, rays, query),
         (Mode::Packet8, _) => return checksum_packets::<A, W8>(accel, rays, query),
         (Mode::Packet16, _) => return checksum_packets::<A, W16>(accel, rays, query),
+        (Mode::Tile64, Query::Closest) => {
+            let mut hits = [Hit::MISS; TILE_RAYS];
+            for tile in rays.chunks(TILE_RAYS) {
+                accel.intersect_tile(tile, &mut hits[..tile.len()]);
+                for h in &hits[..tile.len()] {
+                    c.add_prim(h.prim);
+                }
+            }
+        }
+        (Mode::Tile64, Query::Occluded) => {
+            for tile in rays.chunks(TILE_RAYS) {
+                c.hits += accel.occluded_tile(tile).count_ones() as u64;
+            }
+        }
     }
     c
 }

@@ -14,6 +14,7 @@ pub mod build;
 pub mod node;
 pub mod traverse;
 pub mod traverse_packet;
+pub mod traverse_tile;
 
 use super::Prims;
 use crate::scene::Aabb;

@@ -288,4 +288,18 @@ impl Accel for KdTree {
     fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
         KdTree::occluded_packet(self, rays)
     }
+
+    fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
+        match crate::accel::tile_lanes() {
+            16 => KdTree::intersect_tile::<W16>(self, rays, out),
+            _ => KdTree::intersect_tile::<W8>(self, rays, out),
+        }
+    }
+
+    fn occluded_tile(&self, rays: &[Ray]) -> u64 {
+        match crate::accel::tile_lanes() {
+            16 => KdTree::occluded_tile::<W16>(self, rays),
+            _ => KdTree::occluded_tile::<W8>(self, rays),
+        }
+    }
 }

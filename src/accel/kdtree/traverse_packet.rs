@@ -71,7 +71,7 @@ fn next_up<F: Float>(v: F) -> F {
 /// (never a lane with a NaN or infinite origin or direction, a zero direction or
 /// `!(t_min <= t_max)`, as in the scalar path).
 #[inline]
-fn clip_to_box_packet<W: Simd>(
+pub(super) fn clip_to_box_packet<W: Simd>(
     b: &Aabb,
     rays: &RayPacket<W>,
     active: Mask<W>,
@@ -104,7 +104,10 @@ fn clip_to_box_packet<W: Simd>(
 /// Lane groups of `active` that agree on every direction sign, counting the packets
 /// that had to be split ([`packet_split_count`]).
 #[inline]
-fn coherent_groups<W: Simd>(rays: &RayPacket<W>, active: LaneBits) -> ([LaneBits; 8], usize) {
+pub(super) fn coherent_groups<W: Simd>(
+    rays: &RayPacket<W>,
+    active: LaneBits,
+) -> ([LaneBits; 8], usize) {
     let (groups, count) = sign_groups(rays, active);
     if count > 1 {
         PACKET_SPLITS.with(|c| c.set(c.get() + 1));
@@ -222,14 +225,28 @@ impl KdTree {
     /// Walks the tree with the lanes of `active`, which agree on every direction sign.
     /// Closest hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit
     /// anything in `(t_min, t_max)`, each lane leaving at its first hit.
-    fn traverse_packet<W: Simd, const ANY_HIT: bool>(
+    pub(super) fn traverse_packet<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &RayPacket<W>,
         active: Mask<W>,
         best: &mut HitPacket<W>,
     ) -> Mask<W> {
+        let (lanes, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, active);
+        self.traverse_packet_from::<W, ANY_HIT>(rays, active, (0, lanes, t_near, t_far), best)
+    }
+
+    /// [`Self::traverse_packet`] from `node`, the lanes `lanes` arriving there with the
+    /// interval `[t_near, t_far]` they had when clipped to the tree's box (the entry
+    /// point of [`super::traverse_tile`], which only passes near-only and far-only steps
+    /// that every lane takes, so no lane needs anything outside `node`'s subtree).
+    pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
+        &self,
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+        (mut node, mut lanes, mut t_near, mut t_far): (u32, Mask<W>, Vf<W>, Vf<W>),
+        best: &mut HitPacket<W>,
+    ) -> Mask<W> {
         let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
-        let (mut lanes, mut t_near, mut t_far) = clip_to_box_packet(&self.bounds, rays, active);
         let mut occluded = Mask::<W>::NONE;
         if lanes.none() {
             return occluded;
@@ -245,7 +262,6 @@ impl KdTree {
             std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
         let slacks: [Vf<W>; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
         let mut stack = Stack::<Entry<W>>::new();
-        let mut node = 0u32;
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
