@@ -120,7 +120,7 @@ pub fn intersect_plane_packet<W: Simd>(
 impl Prims {
     /// Tests bounded primitive `prim` against the `active` lanes; twin of
     /// [`Prims::intersect_prim`].
-    #[inline]
+    #[inline(always)]
     pub fn intersect_prim_packet<W: Simd>(
         &self,
         prim: u32,

@@ -18,7 +18,7 @@ use glam::Vec3;
 impl TriAccel {
     /// Intersects the lanes of `rays` set in `active` with the triangle for
     /// `t_min < t < t_max` (per lane); `corners` as in [`TriAccel::intersect`].
-    #[inline]
+    #[inline(always)]
     pub fn intersect_packet<W: Simd>(
         &self,
         rays: &RayPacket<W>,

@@ -14,7 +14,7 @@ use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
 #[command(
     name = "raypack",
     version,
-    about = "A packet ray tracer: SAH kd-tree, 4-ray SIMD packets"
+    about = "A packet ray tracer: SAH kd-tree, SIMD packets of 4, 8 or 16 rays"
 )]
 pub struct Cli {
     #[command(subcommand)]

@@ -15,7 +15,8 @@ pub struct Args {
     /// The hits file to write (closest hits, whatever the set).
     #[arg(long)]
     pub out: PathBuf,
-    /// scalar: one ray at a time; packet: 4 consecutive rays per packet.
+    /// scalar: one ray at a time; packet4, packet8, packet16: 4, 8 or 16 consecutive
+    /// rays per packet (packet: the widest this CPU runs); tile64: 64 rays per tile.
     #[arg(long, default_value = "scalar")]
     pub mode: Mode,
 }

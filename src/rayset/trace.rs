@@ -1,7 +1,8 @@
 //! Tracing a ray set through an [`Accel`]: scalar mode calls `intersect`/`occluded` per
 //! ray, the packet modes call `intersect_packet`/`occluded_packet` on every 4, 8 or 16
 //! consecutive rays (in an image set in RAYS.md's packet order, a 2x2 quad, a 4x2 block
-//! or two 4x2 blocks side by side; lanes past the end of the set are inactive).
+//! or two 4x2 blocks side by side; lanes past the end of the set are inactive), and
+//! tile mode calls `intersect_tile`/`occluded_tile` on every 64 (a 16x4 block).
 //!
 //! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a
 //! chunk to packets, traces them and folds every answer into a [`Checksum`] (hit count
