@@ -11,6 +11,7 @@ use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::RayPacket;
+use raypack::accel::kdtree::stats::{self, TraversalCounts};
 use raypack::accel::kdtree::traverse_packet::sign_group_count;
 use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, TileCounts, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
@@ -245,6 +246,14 @@ fn pool_tile_counts(pool: &rayon::ThreadPool) -> TileCounts {
         })
 }
 
+/// The traversal counters of every thread of `pool`, summed (zero without the `stats`
+/// feature).
+fn pool_traversal_counts(pool: &rayon::ThreadPool) -> TraversalCounts {
+    pool.broadcast(|_| stats::counts())
+        .into_iter()
+        .fold(TraversalCounts::default(), TraversalCounts::plus)
+}
+
 /// Median of a non-empty list.
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -394,6 +403,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     let mut disagreements = Vec::new();
     let mut tile_notes = Vec::new();
+    let mut work_notes = Vec::new();
     let load_before = load_average();
     for name in &args.sets {
         let set = set_named(&sets, name);
@@ -405,7 +415,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         for (t, pool) in &pools {
             for &mode in &args.modes.0 {
                 let tiles_before = pool_tile_counts(pool);
+                let work_before = pool_traversal_counts(pool);
                 let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
+                if stats::ENABLED {
+                    let w = pool_traversal_counts(pool).since(work_before);
+                    // One warm-up pass and `repeat` timed ones.
+                    let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
+                    work_notes.push(format!(
+                        "{name} {mode:<8} {t} threads: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
+                        w.node_steps as f64 / rays,
+                        w.leaf_visits as f64 / rays,
+                        w.prim_tests as f64 / rays
+                    ));
+                }
                 if mode == Mode::Tile64 {
                     let (now, was) = (pool_tile_counts(pool), tiles_before);
                     let tiles = (now.tiles - was.tiles).max(1) as f64;
@@ -456,6 +478,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let load_after = load_average();
     for note in &tile_notes {
         println!("tile64, {note}");
+    }
+    if stats::ENABLED {
+        println!("traversal work (a packet step counts once, whatever its active lanes):");
+    }
+    for note in &work_notes {
+        println!("  {note}");
     }
     println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
     if let Some(path) = &args.json {

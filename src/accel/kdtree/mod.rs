@@ -12,6 +12,7 @@
 
 pub mod build;
 pub mod node;
+pub mod stats;
 pub mod traverse;
 pub mod traverse_packet;
 pub mod traverse_tile;

@@ -27,6 +27,7 @@
 
 use super::KdTree;
 use super::build::MAX_DEPTH;
+use super::stats::bump;
 use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
@@ -73,6 +74,7 @@ impl KdTree {
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
+                bump(|c| c.node_steps += 1);
                 let axis = n.axis() & 3;
                 let children = n.children();
                 let o = axes.org[axis];
@@ -108,17 +110,20 @@ impl KdTree {
                 continue;
             }
             let count = n.leaf_count();
+            bump(|c| c.leaf_visits += 1);
             if count != 0 {
                 let first = n.leaf_first() as usize;
                 let prims = &self.prim_indices[first..first + count as usize];
                 if ANY_HIT {
-                    if prims
-                        .iter()
-                        .any(|&p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
-                    {
+                    let hit = |&p: &u32| {
+                        bump(|c| c.prim_tests += 1);
+                        self.prims.intersect_prim(p, ray, ray.t_max).is_some()
+                    };
+                    if prims.iter().any(hit) {
                         return true;
                     }
                 } else {
+                    bump(|c| c.prim_tests += count as u64);
                     for &p in prims {
                         let limit = best.t.next_up().min(ray.t_max);
                         if let Some(h) = self.prims.intersect_prim(p, ray, limit)

@@ -27,6 +27,7 @@
 //!   and their output lanes are left as they were.
 
 use super::KdTree;
+use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::ray::Hit;
@@ -265,6 +266,7 @@ impl KdTree {
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
+                bump(|c| c.node_steps += 1);
                 let axis = n.axis();
                 let children = n.children();
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
@@ -328,11 +330,13 @@ impl KdTree {
             }
             let first = n.leaf_first() as usize;
             let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
+            bump(|c| c.leaf_visits += 1);
             // Half the leaves are empty: skip the limit's arithmetic there.
             if !prims.is_empty() {
                 if ANY_HIT {
                     let mut live = lanes;
                     for &p in prims {
+                        bump(|c| c.prim_tests += 1);
                         let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
                         occluded |= hits.mask;
                         live &= !hits.mask;
@@ -345,6 +349,7 @@ impl KdTree {
                     }
                 } else {
                     let mut limit = next_up(best.t).min(rays.t_max);
+                    bump(|c| c.prim_tests += prims.len() as u64);
                     for &p in prims {
                         let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
                         if best.merge(&hits, p).any() {

@@ -22,6 +22,7 @@
 //! ordinary packet; [`tile_counts`] reports how often.
 
 use super::KdTree;
+use super::stats::bump;
 use super::traverse::PLANE_SLACK;
 use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
@@ -181,6 +182,7 @@ impl KdTree {
             if n.is_leaf() {
                 break;
             }
+            bump(|c| c.node_steps += 1);
             let a = n.axis();
             let (d_lo, d_hi) = (n.split - b.o_hi[a], n.split - b.o_lo[a]);
             let corners = [
