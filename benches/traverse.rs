@@ -30,7 +30,7 @@ fn traverse(c: &mut Criterion) {
         None,
     )
     .expect("standard sets");
-    for mode in [Mode::Scalar, Mode::Packet] {
+    for mode in Mode::ALL {
         let mut group = c.benchmark_group(format!("traverse/{mode}"));
         group.sample_size(10);
         for (name, set, query) in [

@@ -1,10 +1,10 @@
 //! Wald's TriAccel test, scalar against SIMD, per ray-triangle test:
-//! `triaccel/{scalar,packet}`.
+//! `triaccel/{scalar,packet4,packet8,packet16}`.
 //!
-//! 256 triangles of a tessellated sphere against 1024 coherent rays (256 packets of a
-//! 2x2 pixel quad, aimed at the sphere so that about half the tests hit). Every packet
-//! meets every triangle: scalar mode runs the 4 lanes' tests one by one, packet mode one
-//! 4-wide test. Throughput counts ray-triangle tests. Inputs are built outside `iter`;
+//! 256 triangles of a tessellated sphere against 1024 coherent rays (a 64x16 pixel
+//! grid aimed at the sphere so that about half the tests hit). Every ray meets every
+//! triangle: scalar mode runs the tests one by one, packet mode one test per packet of
+//! 4, 8 or 16 consecutive rays. Throughput counts ray-triangle tests. Inputs are built outside `iter`;
 //! hits are folded into a checksum through `black_box`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -12,7 +12,7 @@ use glam::Vec3;
 use raypack::accel::RayPacket;
 use raypack::accel::triaccel::TriAccel;
 use raypack::ray::Ray;
-use raypack::simd::{LANES, mask_from_bits, splat};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Vf, W4, W8, W16};
 use std::hint::black_box;
 
 /// The triangles of a UV sphere of radius 1 at the origin (`rings` x `2 rings` cells),
@@ -40,49 +40,58 @@ fn sphere_triangles(rings: u32) -> Vec<(TriAccel, [Vec3; 3])> {
 
 fn triaccel(c: &mut Criterion) {
     let tris = sphere_triangles(8);
-    let packets: Vec<[Ray; LANES]> = (0..256)
-        .map(|q| {
-            let (qx, qy) = ((q % 16) as f32, (q / 16) as f32);
-            std::array::from_fn(|lane| {
-                let x = (qx * 2.0 + (lane & 1) as f32) / 32.0 * 2.0 - 1.0;
-                let y = (qy * 2.0 + (lane >> 1) as f32) / 32.0 * 2.0 - 1.0;
-                let d = Vec3::new(x * 0.4, y * 0.4, 1.0).normalize();
-                Ray::new(Vec3::new(0.0, 0.0, -3.0), d, 0.0, f32::INFINITY)
-            })
+    let rays: Vec<Ray> = (0..1024)
+        .map(|i| {
+            let (px, py) = ((i % 64) as f32, (i / 64) as f32);
+            let x = px / 64.0 * 2.0 - 1.0;
+            let y = py / 16.0 * 2.0 - 1.0;
+            let d = Vec3::new(x * 0.4, y * 0.4, 1.0).normalize();
+            Ray::new(Vec3::new(0.0, 0.0, -3.0), d, 0.0, f32::INFINITY)
         })
         .collect();
-    let tests = (tris.len() * packets.len() * LANES) as u64;
+    let tests = (tris.len() * rays.len()) as u64;
 
     let mut group = c.benchmark_group("triaccel");
     group.throughput(Throughput::Elements(tests));
     group.bench_function("scalar", |b| {
         b.iter(|| {
             let mut hits = 0u32;
-            for quad in &packets {
+            for r in &rays {
                 for (tri, corners) in &tris {
-                    for r in quad {
-                        hits += black_box(tri).intersect(r, r.t_max, corners).is_some() as u32;
-                    }
+                    hits += black_box(tri).intersect(r, r.t_max, corners).is_some() as u32;
                 }
             }
             black_box(hits)
         })
     });
-    let soa: Vec<RayPacket> = packets.iter().map(|q| RayPacket::from_rays(q)).collect();
-    let all = mask_from_bits((1 << LANES) - 1);
-    group.bench_function("packet", |b| {
+    packet::<W4>(&mut group, &tris, &rays);
+    packet::<W8>(&mut group, &tris, &rays);
+    packet::<W16>(&mut group, &tris, &rays);
+    group.finish();
+}
+
+/// `triaccel/packetN`: every packet of `W::LANES` consecutive rays against every
+/// triangle.
+fn packet<W: Simd>(
+    group: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
+    tris: &[(TriAccel, [Vec3; 3])],
+    rays: &[Ray],
+) {
+    let soa: Vec<RayPacket<W>> = rays.chunks(W::LANES).map(RayPacket::from_rays).collect();
+    let all = Mask::<W>::from_bits(W::all_bits());
+    group.bench_function(format!("packet{}", W::LANES), |b| {
         b.iter(|| {
             let mut hits = 0u32;
             for p in &soa {
-                for (tri, corners) in &tris {
-                    let h = black_box(tri).intersect_packet(p, all, splat(f32::INFINITY), corners);
-                    hits += raypack::simd::bits(h.mask).count_ones();
+                for (tri, corners) in tris {
+                    let t_max = Vf::<W>::splat(f32::INFINITY);
+                    let h = black_box(tri).intersect_packet(p, all, t_max, corners);
+                    hits += h.mask.bits().count_ones();
                 }
             }
             black_box(hits)
         })
     });
-    group.finish();
 }
 
 criterion_group!(benches, triaccel);

@@ -8,6 +8,7 @@ use raypack::accel::kdtree::KdTree;
 use raypack::accel::{Accel, RayPacket};
 use raypack::ray::Ray;
 use raypack::scene::{Geometry, obj};
+use raypack::simd::{Simd, W8};
 
 fn main() -> anyhow::Result<()> {
     let path = std::env::args()
@@ -32,14 +33,15 @@ fn main() -> anyhow::Result<()> {
         None => println!("ray:    miss"),
     }
 
-    // A packet of rays fanning out around it: each lane's answer equals the single ray's.
-    let rays: Vec<Ray> = (0..raypack::simd::LANES)
+    // A packet of 8 rays (one AVX2 register per coordinate; `W4` and `W16` are the other
+    // widths) fanning out around it: each lane's answer equals the single ray's.
+    let rays: Vec<Ray> = (0..W8::LANES)
         .map(|i| {
             let offset = Vec3::new(i as f32 * 0.05, 0.0, 0.0) * (bounds.max - bounds.min);
             Ray::new(eye, (centre + offset - eye).normalize(), 0.0, f32::INFINITY)
         })
         .collect();
-    let hits = tree.intersect_packet(&RayPacket::from_rays(&rays));
+    let hits = tree.intersect_packet(&RayPacket::<W8>::from_rays(&rays));
     for (i, ray) in rays.iter().enumerate() {
         let hit = hits.lane(i);
         assert_eq!(Some(hit).filter(|h| h.is_hit()), tree.intersect(ray));

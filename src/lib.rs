@@ -1,5 +1,5 @@
-//! raypack: a CPU ray tracer built around 4-ray SIMD packets traced through a SAH
-//! kd-tree, with a scalar reference path kept beside every SIMD kernel.
+//! raypack: a CPU ray tracer built around SIMD ray packets (4, 8 or 16 lanes) traced
+//! through a SAH kd-tree, with a scalar reference path kept beside every SIMD kernel.
 //!
 //! Data flows one way through the modules:
 //! - [`scene`]: geometry, materials, lights, camera, textures, TOML and OBJ loading;
@@ -8,7 +8,7 @@
 //! - [`render`]: shading, sampling, tiles and the film;
 //! - the `raypack` binary's CLI on top.
 //!
-//! [`simd`] is the one place that sets the packet width.
+//! [`simd`] is the one place that knows the SIMD backend and its widths.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]

@@ -245,6 +245,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
         "2",
         "--threads",
         "1,2",
+        "--modes",
+        "all",
         "--json",
         s(&json),
     ]);
@@ -268,7 +270,28 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     assert_eq!(v["spheres"], 91);
     assert!(v["build_seconds"].as_f64().unwrap() >= 0.0);
     let rows = v["results"].as_array().unwrap();
-    assert_eq!(rows.len(), 3 * 2 * 2, "sets x modes x thread counts");
+    assert_eq!(rows.len(), 3 * 5 * 2, "sets x modes x thread counts");
+    let modes: Vec<_> = rows[..5]
+        .iter()
+        .map(|r| {
+            (
+                r["mode"].as_str().unwrap(),
+                r["width"].as_u64().unwrap(),
+                r["packet_size"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        modes,
+        [
+            ("scalar", 1, 1),
+            ("packet4", 4, 4),
+            ("packet8", 8, 8),
+            ("packet16", 16, 16),
+            ("tile64", raypack::accel::tile_lanes() as u64, 64)
+        ],
+        "every mode with its width and packet size"
+    );
     for set in ["primary", "shadow", "diffuse"] {
         let sums: Vec<&str> = rows
             .iter()
@@ -287,18 +310,28 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     }
     assert_eq!(rows[0]["rays"], 32 * 32);
     // Camera quads rarely disagree on a direction sign, cosine bounces nearly always.
-    let split = |set: &str| {
-        let pair = v["split_packets"][set].as_array().unwrap();
-        (pair[0].as_u64().unwrap(), pair[1].as_u64().unwrap())
-    };
-    let (primary_split, primary_total) = split("primary");
-    let (diffuse_split, diffuse_total) = split("diffuse");
-    assert_eq!(primary_total, 32 * 32 / 4);
-    assert!(primary_split * 10 < primary_total, "{primary_split}");
-    assert!(
-        diffuse_split * 2 > diffuse_total,
-        "{diffuse_split} of {diffuse_total}"
-    );
+    for (mode, lanes) in [
+        ("packet4", 4),
+        ("packet8", 8),
+        ("packet16", 16),
+        ("tile64", 64),
+    ] {
+        let split = |set: &str| {
+            let pair = v["split_packets"][set][mode].as_array().unwrap();
+            (pair[0].as_u64().unwrap(), pair[1].as_u64().unwrap())
+        };
+        let (primary_split, primary_total) = split("primary");
+        let (diffuse_split, diffuse_total) = split("diffuse");
+        assert_eq!(primary_total, 32 * 32 / lanes, "{mode}");
+        assert!(
+            primary_split * 10 < primary_total,
+            "{mode}: {primary_split}"
+        );
+        assert!(
+            diffuse_split * 2 > diffuse_total,
+            "{mode}: {diffuse_split} of {diffuse_total}"
+        );
+    }
 
     // --rays DIR traces ray files instead: the same rays give the same checksum.
     let primary = dir.join("primary.rays");

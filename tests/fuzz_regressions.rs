@@ -10,6 +10,7 @@ use raypack::accel::kdtree::KdTree;
 use raypack::accel::packet::RayPacket;
 use raypack::ray::{Hit, Ray};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
+use raypack::simd::W16;
 
 /// The `kdtree` target's input (`snap` false; the shrunk inputs never snapped).
 struct KdInput {
@@ -57,8 +58,8 @@ fn check_kdtree(input: KdInput) {
         .iter()
         .map(|&(o, d, t_min, t_max)| Ray::new(Vec3::from(o), Vec3::from(d), t_min, t_max))
         .collect();
-    for chunk in rays.chunks(4) {
-        let packet = RayPacket::from_rays(chunk);
+    for chunk in rays.chunks(16) {
+        let packet = RayPacket::<W16>::from_rays(chunk);
         let hits = tree.intersect_packet(&packet);
         let occluded = tree.occluded_packet(&packet);
         for (i, ray) in chunk.iter().enumerate() {

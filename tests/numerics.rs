@@ -16,6 +16,7 @@ use raypack::accel::packet::RayPacket;
 use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
+use raypack::simd::{W4, W8, W16};
 
 fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
@@ -26,8 +27,8 @@ fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
 fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize {
     let brute = BruteForce::new(g);
     let mut hits = 0;
-    for (c, chunk) in rays.chunks(4).enumerate() {
-        let packet = RayPacket::from_rays(chunk);
+    for (c, chunk) in rays.chunks(8).enumerate() {
+        let packet = RayPacket::<W8>::from_rays(chunk);
         let packet_hits = tree.intersect_packet(&packet);
         let packet_occluded = tree.occluded_packet(&packet);
         for (i, ray) in chunk.iter().enumerate() {
@@ -39,13 +40,13 @@ fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize 
                 bits(got),
                 bits(want),
                 "{what}: ray {} {ray:?} kd-tree vs brute",
-                c * 4 + i
+                c * 8 + i
             );
             assert_eq!(
                 bits(from_packet),
                 bits(want),
                 "{what}: ray {} {ray:?} packet vs brute",
-                c * 4 + i
+                c * 8 + i
             );
             let occluded = brute.occluded(ray);
             assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
@@ -93,7 +94,7 @@ fn nan_infinite_and_zero_rays_hit_nothing() {
     let good = Ray::new(Vec3::new(0.5, 2.0, 0.5), -Vec3::Y, 0.0, inf);
     let want = tree.intersect(&good).expect("the good ray hits");
     for ray in &bad {
-        let packet = RayPacket::from_rays(&[good, *ray, good, *ray]);
+        let packet = RayPacket::<W4>::from_rays(&[good, *ray, good, *ray]);
         let hits = tree.intersect_packet(&packet);
         let occluded = tree.occluded_packet(&packet);
         assert_eq!(occluded, 0b0101, "{ray:?}");
@@ -148,9 +149,14 @@ fn tiny_huge_and_far_scenes_agree_with_brute_force_and_stay_watertight() {
             "{what}: scalar leaks"
         );
         assert_eq!(
-            leaks_packet(&closed_tree, &interior).len(),
+            leaks_packet::<W4>(&closed_tree, &interior).len(),
             0,
-            "{what}: packet leaks"
+            "{what}: packet leaks (4 lanes)"
+        );
+        assert_eq!(
+            leaks_packet::<W16>(&closed_tree, &interior).len(),
+            0,
+            "{what}: packet leaks (16 lanes)"
         );
     }
 }

@@ -11,6 +11,8 @@
 //! Inputs are seeded random rays plus the adversarial set: axis-parallel rays, +-0.0
 //! direction components, rays aimed exactly at vertices and edges, origins on the
 //! surface, mixed direction signs in one packet, and inactive NaN lanes.
+//!
+//! Every test runs at every width (4, 8 and 16 lanes) in the same binary.
 
 mod common;
 
@@ -19,7 +21,9 @@ use common::{
 };
 use glam::Vec3;
 use raypack::accel::Accel;
+use raypack::accel::PacketWidth;
 use raypack::accel::kdtree::traverse_packet::packet_split_count;
+use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::accel::packet::{HitPacket, LaneHits, RayPacket, quad_order};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
@@ -30,7 +34,16 @@ use raypack::accel::triaccel::TriAccel;
 use raypack::ray::{Hit, NO_HIT, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::{LANES, Mask, Vf, Vu, mask_from_bits};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16, block_pixel};
+
+/// Runs a test body at every width.
+macro_rules! at_every_width {
+    ($f:ident $(, $arg:expr)*) => {
+        $f::<W4>($($arg),*);
+        $f::<W8>($($arg),*);
+        $f::<W16>($($arg),*);
+    };
+}
 
 /// Draws the kernel tests need beyond [`Rng`]'s own.
 trait Draw {
@@ -58,9 +71,13 @@ impl Draw for Rng {
     }
 }
 
-/// A packet whose lane `i` is `rays[i]`, or inactive and full of NaN.
-fn packet(rays: &[Option<Ray>; LANES]) -> RayPacket {
-    let get = |f: &dyn Fn(&Ray) -> f32| Vf::from(rays.map(|r| r.as_ref().map_or(f32::NAN, f)));
+/// A packet whose lane `i` is `rays[i]`, or inactive and full of NaN (also past the
+/// end of `rays`).
+fn packet<W: Simd>(rays: &[Option<Ray>]) -> RayPacket<W> {
+    assert!(rays.len() <= W::LANES);
+    let get = |f: &dyn Fn(&Ray) -> f32| {
+        Vf::<W>::from_fn(|i| rays.get(i).copied().flatten().as_ref().map_or(f32::NAN, f))
+    };
     let org = [0, 1, 2].map(|a| get(&|r| r.org[a]));
     let dir = [0, 1, 2].map(|a| get(&|r| r.dir[a]));
     let mut active = 0;
@@ -72,10 +89,10 @@ fn packet(rays: &[Option<Ray>; LANES]) -> RayPacket {
     RayPacket {
         org,
         dir,
-        inv_dir: dir.map(|d| Vf::ONE / d),
+        inv_dir: dir.map(|d| Vf::<W>::ONE / d),
         t_min: get(&|r| r.t_min),
         t_max: get(&|r| r.t_max),
-        active: mask_from_bits(active),
+        active: Mask::<W>::from_bits(active),
     }
 }
 
@@ -93,14 +110,15 @@ fn bits3(h: Option<(f32, f32, f32)>) -> Option<[u32; 3]> {
 
 /// Compares one kernel's packet answer with the scalar answers lane by lane, then checks
 /// that merging it into a sentinel `HitPacket` touches only the lanes that hit.
-fn check(
+fn check<W: Simd>(
     kernel: &str,
     what: &str,
-    rays: &[Option<Ray>; LANES],
+    rays: &[Option<Ray>],
     scalar: impl Fn(&Ray) -> Option<(f32, f32, f32)>,
-    got: LaneHits,
+    got: LaneHits<W>,
 ) {
-    let mask = got.mask.to_bitmask();
+    let mask = got.mask.bits();
+    let kernel = &format!("{kernel} ({} lanes)", W::LANES);
     for (i, r) in rays.iter().enumerate() {
         let Some(r) = r else {
             assert_eq!(
@@ -111,13 +129,7 @@ fn check(
             continue;
         };
         let want = scalar(r);
-        let have = (mask & (1 << i) != 0).then(|| {
-            (
-                got.t.as_array()[i],
-                got.u.as_array()[i],
-                got.v.as_array()[i],
-            )
-        });
+        let have = (mask & (1 << i) != 0).then(|| (got.t.lane(i), got.u.lane(i), got.v.lane(i)));
         assert_eq!(
             bits3(want),
             bits3(have),
@@ -125,11 +137,11 @@ fn check(
             show(r)
         );
     }
-    let sentinel = HitPacket {
-        t: Vf::from([f32::NAN, 7.0, f32::INFINITY, -0.0]),
-        u: Vf::splat(0.5),
-        v: Vf::splat(-0.5),
-        prim: Vu::from([1, 2, NO_HIT, 4]),
+    let sentinel = HitPacket::<W> {
+        t: Vf::<W>::from_fn(|i| [f32::NAN, 7.0, f32::INFINITY, -0.0][i % 4]),
+        u: Vf::<W>::splat(0.5),
+        v: Vf::<W>::splat(-0.5),
+        prim: Vu::<W>::from_fn(|i| [1, 2, NO_HIT, 4][i % 4]),
     };
     let mut merged = sentinel;
     merged.merge(&got, 3);
@@ -142,8 +154,8 @@ fn check(
                 "{kernel}: lane {i} changed without a hit"
             );
         } else {
-            let take = Hit::is_closer(got.t.as_array()[i], 3, &before);
-            let want = if take { got.t.as_array()[i] } else { before.t };
+            let take = Hit::is_closer(got.t.lane(i), 3, &before);
+            let want = if take { got.t.lane(i) } else { before.t };
             assert_eq!(
                 after.t.to_bits(),
                 want.to_bits(),
@@ -155,12 +167,14 @@ fn check(
 }
 
 /// Lanes of a packet: each active with probability 3/4 (at least one active).
-fn lanes(rng: &mut Rng, mut make: impl FnMut(&mut Rng) -> Ray) -> [Option<Ray>; LANES] {
-    let keep = 1 + rng.below((1 << LANES) - 1);
-    std::array::from_fn(|i| {
-        let r = make(rng);
-        (keep & (1 << i) != 0 || rng.below(4) != 0).then_some(r)
-    })
+fn lanes<W: Simd>(rng: &mut Rng, mut make: impl FnMut(&mut Rng) -> Ray) -> Vec<Option<Ray>> {
+    let keep = 1 << rng.below(W::LANES as u32);
+    (0..W::LANES)
+        .map(|i| {
+            let r = make(rng);
+            (keep & (1 << i) != 0 || rng.below(4) != 0).then_some(r)
+        })
+        .collect()
 }
 
 fn t_range(rng: &mut Rng) -> (f32, f32) {
@@ -235,21 +249,21 @@ const PACKETS: usize = 40_000;
 
 /// Runs `PACKETS` packets through one kernel and its scalar twin: each packet gets a
 /// fresh primitive from `prim` and rays from `ray`.
-fn run_kernel<P: std::fmt::Debug>(
+fn run_kernel<W: Simd, P: std::fmt::Debug>(
     kernel: &str,
     seed: u64,
     prim: impl Fn(&mut Rng, usize) -> P,
     ray: impl Fn(&mut Rng, &P) -> Ray,
     scalar: impl Fn(&P, &Ray) -> Option<(f32, f32, f32)>,
-    packet_test: impl Fn(&P, &RayPacket) -> LaneHits,
+    packet_test: impl Fn(&P, &RayPacket<W>) -> LaneHits<W>,
 ) {
     let mut rng = Rng::new(seed);
     let mut hits = 0;
-    for n in 0..PACKETS {
+    for n in 0..PACKETS * 4 / W::LANES {
         let p = prim(&mut rng, n);
-        let rays = lanes(&mut rng, |rng| ray(rng, &p));
+        let rays = lanes::<W>(&mut rng, |rng| ray(rng, &p));
         let got = packet_test(&p, &packet(&rays));
-        hits += got.mask.to_bitmask().count_ones();
+        hits += got.mask.bits().count_ones();
         check(kernel, &format!("{p:?}"), &rays, |r| scalar(&p, r), got);
     }
     assert!(
@@ -260,7 +274,11 @@ fn run_kernel<P: std::fmt::Debug>(
 
 #[test]
 fn triaccel_packet_matches_scalar() {
-    run_kernel(
+    at_every_width!(triaccel_packet_matches_scalar_at);
+}
+
+fn triaccel_packet_matches_scalar_at<W: Simd>() {
+    run_kernel::<W, _>(
         "TriAccel::intersect_packet",
         0x7121,
         |rng, _| {
@@ -272,13 +290,17 @@ fn triaccel_packet_matches_scalar() {
             ray_at(rng, p)
         },
         |(tri, acc), r| acc.intersect(r, r.t_max, tri),
-        |(tri, acc), p| acc.intersect_packet(p, p.active, p.t_max, tri),
+        |(tri, acc), p: &RayPacket<W>| acc.intersect_packet(p, p.active, p.t_max, tri),
     );
 }
 
 #[test]
 fn sphere_packet_matches_scalar() {
-    run_kernel(
+    at_every_width!(sphere_packet_matches_scalar_at);
+}
+
+fn sphere_packet_matches_scalar_at<W: Simd>() {
+    run_kernel::<W, _>(
         "intersect_sphere_packet",
         0x5e7e,
         |rng, _| Sphere {
@@ -299,13 +321,17 @@ fn sphere_packet_matches_scalar() {
             }
         },
         |s, r| intersect_sphere(s, r, r.t_max).map(|t| (t, 0.0, 0.0)),
-        |s, p| intersect_sphere_packet(s, p, p.active, p.t_max),
+        |s, p: &RayPacket<W>| intersect_sphere_packet(s, p, p.active, p.t_max),
     );
 }
 
 #[test]
 fn box_packet_matches_scalar() {
-    run_kernel(
+    at_every_width!(box_packet_matches_scalar_at);
+}
+
+fn box_packet_matches_scalar_at<W: Simd>() {
+    run_kernel::<W, _>(
         "intersect_box_packet",
         0xb0c5,
         |rng, _| {
@@ -331,13 +357,17 @@ fn box_packet_matches_scalar() {
             ray_at(rng, p)
         },
         |bx, r| intersect_box(bx, r, r.t_max).map(|t| (t, 0.0, 0.0)),
-        |bx, p| intersect_box_packet(bx, p, p.active, p.t_max),
+        |bx, p: &RayPacket<W>| intersect_box_packet(bx, p, p.active, p.t_max),
     );
 }
 
 #[test]
 fn plane_packet_matches_scalar() {
-    run_kernel(
+    at_every_width!(plane_packet_matches_scalar_at);
+}
+
+fn plane_packet_matches_scalar_at<W: Simd>() {
+    run_kernel::<W, _>(
         "intersect_plane_packet",
         0x91a7e,
         |rng, _| Plane {
@@ -362,27 +392,32 @@ fn plane_packet_matches_scalar() {
             }
         },
         |pl, r| intersect_plane(pl, r, r.t_max).map(|t| (t, 0.0, 0.0)),
-        |pl, p| intersect_plane_packet(pl, p, p.active, p.t_max),
+        |pl, p: &RayPacket<W>| intersect_plane_packet(pl, p, p.active, p.t_max),
     );
 }
 
 #[test]
 fn merge_breaks_ties_toward_the_smaller_id() {
-    let mut best = HitPacket::miss();
-    let all: Mask = mask_from_bits((1 << LANES) - 1);
-    let at = |t: f32| LaneHits {
+    at_every_width!(merge_breaks_ties_at);
+}
+
+fn merge_breaks_ties_at<W: Simd>() {
+    let mut best = HitPacket::<W>::miss();
+    let all = Mask::<W>::from_bits(W::all_bits());
+    let at = |t: f32| LaneHits::<W> {
         mask: all,
-        t: Vf::splat(t),
-        u: Vf::ZERO,
-        v: Vf::ZERO,
+        t: Vf::<W>::splat(t),
+        u: Vf::<W>::ZERO,
+        v: Vf::<W>::ZERO,
     };
+    let prims = |b: &HitPacket<W>| (0..W::LANES).map(|i| b.prim.lane(i)).collect::<Vec<_>>();
     best.merge(&at(2.0), 9);
     best.merge(&at(2.0), 12);
-    assert_eq!(best.prim.to_array(), [9; LANES], "equal t, larger id loses");
+    assert_eq!(prims(&best), vec![9; W::LANES], "equal t, larger id loses");
     best.merge(&at(2.0), 4);
-    assert_eq!(best.prim.to_array(), [4; LANES], "equal t, smaller id wins");
+    assert_eq!(prims(&best), vec![4; W::LANES], "equal t, smaller id wins");
     best.merge(&at(1.0), NO_HIT - 1);
-    assert_eq!(best.prim.to_array(), [NO_HIT - 1; LANES], "smaller t wins");
+    assert_eq!(prims(&best), vec![NO_HIT - 1; W::LANES], "smaller t wins");
 }
 
 fn show_hit(h: Option<Hit>) -> String {
@@ -395,14 +430,41 @@ fn hit_bits(h: Option<Hit>) -> Option<[u32; 4]> {
     h.map(|h| [h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()])
 }
 
+/// One ray's closest hit (a miss as [`Hit::MISS`]) and any-hit answer against the
+/// scalar path's, bit for bit.
+fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: &str) {
+    let want = tree.intersect(r);
+    let have = got.is_hit().then_some(got);
+    assert_eq!(
+        hit_bits(have),
+        hit_bits(want),
+        "{at}\n  ray: {}\n  scalar: {}\n  packet: {}",
+        show(r),
+        show_hit(want),
+        show_hit(have)
+    );
+    assert_eq!(
+        occluded,
+        tree.occluded(r),
+        "{at}: any-hit\n  ray: {}",
+        show(r)
+    );
+}
+
 /// Closest hits and any-hit answers of `tree`'s packet path against its scalar path,
 /// for every active lane of every packet. Returns the number of lanes that hit.
-fn assert_tree_matches(tree: &KdTree, packets: &[[Option<Ray>; LANES]], what: &str) -> usize {
+/// Runs through the [`raypack::accel::Accel`] entry point of width `W`, as the tracers do.
+fn assert_tree_matches<W: PacketWidth>(
+    tree: &KdTree,
+    packets: &[Vec<Option<Ray>>],
+    what: &str,
+) -> usize {
+    let what = &format!("{what} ({} lanes)", W::LANES);
     let mut hits = 0;
     for (n, rays) in packets.iter().enumerate() {
-        let p = packet(rays);
-        let got = tree.intersect_packet(&p);
-        let occluded = tree.occluded_packet(&p);
+        let p = packet::<W>(rays);
+        let got = W::intersect(tree, &p);
+        let occluded = W::occluded(tree, &p);
         for (i, r) in rays.iter().enumerate() {
             let lane = got.lane(i);
             let Some(r) = r else {
@@ -413,72 +475,101 @@ fn assert_tree_matches(tree: &KdTree, packets: &[[Option<Ray>; LANES]], what: &s
                 assert_eq!(occluded & (1 << i), 0, "{what}: inactive lane {i} occluded");
                 continue;
             };
-            let want = tree.intersect(r);
-            let have = lane.is_hit().then_some(lane);
-            hits += have.is_some() as usize;
-            assert_eq!(
-                hit_bits(have),
-                hit_bits(want),
-                "{what}: packet {n} lane {i}\n  ray: {}\n  scalar: {}\n  packet: {}",
-                show(r),
-                show_hit(want),
-                show_hit(have)
-            );
-            assert_eq!(
-                occluded & (1 << i) != 0,
-                tree.occluded(r),
-                "{what}: any-hit, packet {n} lane {i}\n  ray: {}",
-                show(r)
-            );
+            hits += lane.is_hit() as usize;
+            let at = format!("{what}: packet {n} lane {i}");
+            assert_ray_matches(tree, r, lane, occluded & (1 << i) != 0, &at);
         }
     }
     hits
 }
 
-/// `rays` four at a time; with `rng`, some lanes made inactive (NaN).
-fn packets_of(rays: &[Ray], mut rng: Option<&mut Rng>) -> Vec<[Option<Ray>; LANES]> {
-    rays.chunks(LANES)
+/// Closest hits and any-hit answers of `tree`'s ray tiles ([`TILE_RAYS`] consecutive
+/// rays of `rays`, groups of `W::LANES` sharing an entry point) against its scalar path.
+/// Returns the nodes the tiles descended together (their entry depths), summed.
+fn assert_tiles_match<W: Simd>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
+    let what = &format!("{what} (tiles of {} lanes)", W::LANES);
+    let before = tile_counts();
+    for (n, tile) in rays.chunks(TILE_RAYS).enumerate() {
+        let mut got = vec![Hit::MISS; tile.len()];
+        tree.intersect_tile::<W>(tile, &mut got);
+        let occluded = tree.occluded_tile::<W>(tile);
+        for (i, r) in tile.iter().enumerate() {
+            let at = format!("{what}: tile {n} ray {i}");
+            assert_ray_matches(tree, r, got[i], occluded & (1 << i) != 0, &at);
+        }
+        let past = occluded.checked_shr(tile.len() as u32).unwrap_or(0);
+        assert_eq!(past, 0, "{what}: bits past the tile");
+    }
+    tile_counts().entry_depth - before.entry_depth
+}
+
+/// The rays of packets (active lanes only), in order.
+fn flatten(packets: &[Vec<Option<Ray>>]) -> Vec<Ray> {
+    packets.iter().flatten().flatten().copied().collect()
+}
+
+/// `rays` a packet width at a time; with `rng`, some lanes made inactive (NaN).
+fn packets_of<W: Simd>(rays: &[Ray], mut rng: Option<&mut Rng>) -> Vec<Vec<Option<Ray>>> {
+    rays.chunks(W::LANES)
         .map(|c| {
-            std::array::from_fn(|i| {
-                let drop = rng.as_mut().is_some_and(|g| g.below(5) == 0);
-                c.get(i).copied().filter(|_| !drop)
-            })
+            (0..W::LANES)
+                .map(|i| {
+                    let drop = rng.as_mut().is_some_and(|g| g.below(5) == 0);
+                    c.get(i).copied().filter(|_| !drop)
+                })
+                .collect()
         })
         .collect()
 }
 
-/// Camera rays as 2x2 quads in packet order.
-fn quad_packets(camera: &Camera, width: u32, height: u32, stride: usize) -> Vec<[Ray; LANES]> {
+/// Camera rays as blocks of `W`'s packet shape, at the top-left corners of RAYS.md's
+/// quads (blocks overlap at widths above 4; each one is a packet on its own).
+fn block_packets<W: Simd>(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    stride: usize,
+) -> Vec<Vec<Ray>> {
     let frame = camera.frame(width, height);
+    let (bw, bh) = W::SHAPE;
     quad_order(width, height)
         .into_iter()
+        .filter(|&(x, y)| x + bw <= width && y + bh <= height)
         .step_by(stride)
-        .map(|(x, y)| RayPacket::camera_quad(&frame, x, y))
+        .map(|(x, y)| RayPacket::<W>::camera_block(&frame, x, y))
         .collect()
 }
 
 /// Shadow packets: from each quad's hits toward `light` (lanes that missed are
 /// inactive), and from one hit point toward four points of an area light around it.
-fn shadow_packets(
+fn shadow_packets<W: Simd>(
     tree: &KdTree,
-    quads: &[[Ray; LANES]],
+    quads: &[Vec<Ray>],
     light: Vec3,
     eps: f32,
-) -> Vec<[Option<Ray>; LANES]> {
+) -> Vec<Vec<Option<Ray>>> {
     let shadow = |p: Vec3, to: Vec3| {
         let d = to - p;
         Ray::new(p, d.normalize(), eps, d.length())
     };
     let mut out = Vec::new();
     for (n, quad) in quads.iter().enumerate() {
-        let hits = quad.map(|r| tree.intersect(&r).map(|h| r.at(h.t)));
-        out.push(std::array::from_fn(|i| hits[i].map(|p| shadow(p, light))));
-        if let Some(p) = hits[n % LANES] {
+        let hits: Vec<_> = quad
+            .iter()
+            .map(|r| tree.intersect(r).map(|h| r.at(h.t)))
+            .collect();
+        out.push(hits.iter().map(|h| h.map(|p| shadow(p, light))).collect());
+        if let Some(p) = hits[n % W::LANES] {
             let size = eps * 1e4;
-            out.push(std::array::from_fn(|i| {
-                let corner = Vec3::new((i & 1) as f32 - 0.5, 0.0, (i >> 1) as f32 - 0.5);
-                Some(shadow(p, light + corner * size))
-            }));
+            out.push(
+                (0..W::LANES)
+                    .map(|i| {
+                        let (x, z) = block_pixel::<W>(i);
+                        let corner = Vec3::new(x as f32 - 0.5, 0.0, z as f32 - 0.5);
+                        Some(shadow(p, light + corner * size))
+                    })
+                    .collect(),
+            );
         }
     }
     out
@@ -486,7 +577,7 @@ fn shadow_packets(
 
 /// Coherent packets: one origin, four directions close to one another (so most agree on
 /// every sign, and some straddle an axis).
-fn coherent_packets(b: &Aabb, count: usize, rng: &mut Rng) -> Vec<[Option<Ray>; LANES]> {
+fn coherent_packets<W: Simd>(b: &Aabb, count: usize, rng: &mut Rng) -> Vec<Vec<Option<Ray>>> {
     (0..count)
         .map(|_| {
             let org = Vec3::new(
@@ -499,16 +590,28 @@ fn coherent_packets(b: &Aabb, count: usize, rng: &mut Rng) -> Vec<[Option<Ray>; 
             } else {
                 rng.unit_vector()
             };
-            std::array::from_fn(|_| {
-                let d = (centre + rng.vec(-0.02, 0.02)).normalize();
-                Some(Ray::new(org, d, 0.0, f32::INFINITY))
-            })
+            (0..W::LANES)
+                .map(|_| {
+                    let d = (centre + rng.vec(-0.02, 0.02)).normalize();
+                    Some(Ray::new(org, d, 0.0, f32::INFINITY))
+                })
+                .collect()
         })
         .collect()
 }
 
-/// Every packet kind on one scene.
+/// Every packet kind on one scene, at every width.
 fn check_tree_scene(g: &Geometry, camera: &Camera, seed: u64, count: usize, what: &str) {
+    at_every_width!(check_tree_scene_at, g, camera, seed, count, what);
+}
+
+fn check_tree_scene_at<W: PacketWidth>(
+    g: &Geometry,
+    camera: &Camera,
+    seed: u64,
+    count: usize,
+    what: &str,
+) {
     let tree = KdTree::build_with(g, &BuildParams::default());
     tree.validate()
         .unwrap_or_else(|e| panic!("{what}: invalid tree: {e}"));
@@ -519,17 +622,20 @@ fn check_tree_scene(g: &Geometry, camera: &Camera, seed: u64, count: usize, what
     } else {
         b
     };
-    let quads = quad_packets(camera, 128, 96, 1);
-    let camera_packets: Vec<_> = quads.iter().map(|q| q.map(Some)).collect();
-    let hits = assert_tree_matches(&tree, &camera_packets, &format!("{what}, camera quads"));
+    let quads = block_packets::<W>(camera, 128, 96, 1);
+    let camera_packets: Vec<_> = quads
+        .iter()
+        .map(|q| q.iter().copied().map(Some).collect())
+        .collect();
+    let hits = assert_tree_matches::<W>(&tree, &camera_packets, &format!("{what}, camera blocks"));
     if g.bounded_count() > 0 {
         assert!(hits > quads.len() / 20, "{what}: only {hits} camera hits");
     }
     let splits_before = packet_split_count();
     let random = random_rays(b.min, b.max, count, seed);
-    assert_tree_matches(
+    assert_tree_matches::<W>(
         &tree,
-        &packets_of(&random, Some(&mut rng)),
+        &packets_of::<W>(&random, Some(&mut rng)),
         &format!("{what}, random"),
     );
     assert!(
@@ -537,17 +643,33 @@ fn check_tree_scene(g: &Geometry, camera: &Camera, seed: u64, count: usize, what
         "{what}: no mixed-sign packet was split"
     );
     let adversarial = adversarial_rays(&tree, g, count, seed + 1);
-    let packets = packets_of(&adversarial, Some(&mut rng));
-    assert_tree_matches(&tree, &packets, &format!("{what}, adversarial"));
-    let coherent = coherent_packets(&b, count / LANES, &mut rng);
-    assert_tree_matches(&tree, &coherent, &format!("{what}, coherent"));
+    let packets = packets_of::<W>(&adversarial, Some(&mut rng));
+    assert_tree_matches::<W>(&tree, &packets, &format!("{what}, adversarial"));
+    let coherent = coherent_packets::<W>(&b, count / W::LANES, &mut rng);
+    assert_tree_matches::<W>(&tree, &coherent, &format!("{what}, coherent"));
     let light = Vec3::new(
         (b.min.x + b.max.x) * 0.5,
         b.max.y + b.diagonal() * 0.3,
         b.min.z,
     );
-    let shadows = shadow_packets(&tree, &quads, light, 1e-4 * b.diagonal());
-    assert_tree_matches(&tree, &shadows, &format!("{what}, shadows"));
+    let shadows = shadow_packets::<W>(&tree, &quads, light, 1e-4 * b.diagonal());
+    assert_tree_matches::<W>(&tree, &shadows, &format!("{what}, shadows"));
+    if W::LANES >= 8 {
+        // Ray tiles of the same rays: camera rays in packet order (16x4 pixel blocks),
+        // random, adversarial, coherent and shadow rays.
+        let frame = camera.frame(128, 96);
+        let camera_rays: Vec<Ray> = quad_order(128, 96)
+            .into_iter()
+            .flat_map(|(x, y)| RayPacket::<W4>::camera_block(&frame, x, y))
+            .collect();
+        assert_tiles_match::<W>(&tree, &camera_rays, &format!("{what}, camera"));
+        assert_tiles_match::<W>(&tree, &random, &format!("{what}, random"));
+        assert_tiles_match::<W>(&tree, &adversarial, &format!("{what}, adversarial"));
+        let coherent = flatten(&coherent);
+        assert_tiles_match::<W>(&tree, &coherent, &format!("{what}, coherent"));
+        let shadows = flatten(&shadows);
+        assert_tiles_match::<W>(&tree, &shadows, &format!("{what}, shadows"));
+    }
 }
 
 #[test]
@@ -627,25 +749,51 @@ fn check_shared_scene(name: &str, stride: usize) {
     let tree = KdTree::build_with(&g, &BuildParams::default());
     tree.validate()
         .unwrap_or_else(|e| panic!("{name}: invalid tree: {e}"));
-    let quads = quad_packets(&camera, 1024, 768, stride);
-    let packets: Vec<_> = quads.iter().map(|q| q.map(Some)).collect();
-    let hits = assert_tree_matches(&tree, &packets, &format!("{name}, camera quads"));
+    at_every_width!(check_shared_scene_at, name, &g, &camera, &tree, stride);
+}
+
+fn check_shared_scene_at<W: PacketWidth>(
+    name: &str,
+    g: &Geometry,
+    camera: &Camera,
+    tree: &KdTree,
+    stride: usize,
+) {
+    let quads = block_packets::<W>(camera, 1024, 768, stride);
+    let packets: Vec<_> = quads
+        .iter()
+        .map(|q| q.iter().copied().map(Some).collect())
+        .collect();
+    let hits = assert_tree_matches::<W>(tree, &packets, &format!("{name}, camera blocks"));
     assert!(hits > quads.len() / 10, "{name}: only {hits} camera hits");
     let b = g.bounds();
     let light = Vec3::new((b.min.x + b.max.x) * 0.5, b.max.y * 0.9, b.min.z * 0.3);
-    let shadows = shadow_packets(&tree, &quads, light, 1e-4 * b.diagonal());
-    assert_tree_matches(&tree, &shadows, &format!("{name}, shadows"));
+    let shadows = shadow_packets::<W>(tree, &quads, light, 1e-4 * b.diagonal());
+    assert_tree_matches::<W>(tree, &shadows, &format!("{name}, shadows"));
+    if W::LANES >= 8 {
+        let flat: Vec<Ray> = quads.iter().flatten().copied().collect();
+        let depth = assert_tiles_match::<W>(tree, &flat, &format!("{name}, camera"));
+        println!(
+            "{name}, {} lanes: camera tiles descended {depth} nodes together",
+            W::LANES
+        );
+        assert!(
+            depth > 0,
+            "{name}: no camera tile shared an entry point below the root"
+        );
+        assert_tiles_match::<W>(tree, &flatten(&shadows), &format!("{name}, shadows"));
+    }
     let mut rng = Rng::new(name.len() as u64);
-    let random = camera_rays(&camera, 64, 48, 1)
+    let random = camera_rays(camera, 64, 48, 1)
         .into_iter()
         .map(|r| {
             let from = r.at(rng.range(0.0, b.diagonal() * 0.5));
             Ray::new(from, rng.unit_vector(), 0.0, f32::INFINITY)
         })
         .collect::<Vec<_>>();
-    assert_tree_matches(
-        &tree,
-        &packets_of(&random, Some(&mut rng)),
+    assert_tree_matches::<W>(
+        tree,
+        &packets_of::<W>(&random, Some(&mut rng)),
         &format!("{name}, random"),
     );
 }

@@ -15,7 +15,7 @@ use raypack::accel::packet::RayPacket;
 use raypack::ray::{Hit, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
-use raypack::simd::{LANES, mask_from_bits};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Vf, W4, W8, W16};
 
 const SCENES: u64 = 64;
 const PACKETS: usize = 600;
@@ -122,6 +122,12 @@ fn random_lane(rng: &mut Rng, g: &Geometry, accel: &BruteForce) -> Ray {
 
 #[test]
 fn packet_equals_scalar_equals_brute_force_on_random_scenes() {
+    packet_equals_scalar_at::<W4>();
+    packet_equals_scalar_at::<W8>();
+    packet_equals_scalar_at::<W16>();
+}
+
+fn packet_equals_scalar_at<W: Simd>() {
     let mut hits = 0usize;
     for seed in 0..SCENES {
         let g = random_scene(1000 + seed);
@@ -131,23 +137,26 @@ fn packet_equals_scalar_equals_brute_force_on_random_scenes() {
         let brute = BruteForce::new(&g);
         let mut rng = Rng::new(seed);
         for n in 0..PACKETS {
-            let rays: [Ray; LANES] = std::array::from_fn(|_| random_lane(&mut rng, &g, &brute));
-            let mut packet = RayPacket::from_rays(&rays);
+            let rays: Vec<Ray> = (0..W::LANES)
+                .map(|_| random_lane(&mut rng, &g, &brute))
+                .collect();
+            let mut packet = RayPacket::<W>::from_rays(&rays);
             let live = if rng.below(4) == 0 {
-                rng.below(1 << LANES)
+                rng.below(W::all_bits())
             } else {
-                (1 << LANES) - 1
+                W::all_bits()
             };
-            packet.active = mask_from_bits(live);
+            packet.active = Mask::<W>::from_bits(live);
             // Inactive lanes hold NaN: they must not change anything.
             for a in 0..3 {
-                let mut o = packet.org[a].to_array();
-                for (i, x) in o.iter_mut().enumerate() {
+                let o = packet.org[a];
+                packet.org[a] = Vf::<W>::from_fn(|i| {
                     if live & (1 << i) == 0 {
-                        *x = f32::NAN;
+                        f32::NAN
+                    } else {
+                        o.lane(i)
                     }
-                }
-                packet.org[a] = o.into();
+                });
             }
             let got = tree.intersect_packet(&packet);
             let occluded = tree.occluded_packet(&packet);

@@ -1,6 +1,7 @@
 //! Every scene in scenes/, and scenes built to make each kind of packet form, rendered
-//! in scalar and in packet mode: the images must be identical, pixel for pixel and bit
-//! for bit, and the packet path must actually have traced packets.
+//! in scalar mode and in every packet mode (4, 8 and 16 lanes): the images must be
+//! identical, pixel for pixel and bit for bit, the ray counts equal, and the packet
+//! path must actually have traced packets of its width.
 //!
 //! The tolerance is zero because both modes do the same arithmetic: the packet
 //! traversal returns the scalar closest hit and any-hit answer bit for bit
@@ -37,21 +38,36 @@ fn every_scene_renders_identically_in_scalar_and_packet_mode() {
         let aspect = s.height as f32 / s.width as f32;
         s.width = 161;
         s.height = (161.0 * aspect).round() as u32;
-        let packet = render_both(&path.display().to_string(), &scene);
-        assert!(
-            packet.counts.primary > 0,
-            "{}: nothing rendered",
-            path.display()
-        );
+        for (_, packet) in render_all(&path.display().to_string(), &scene) {
+            assert!(
+                packet.counts.primary > 0,
+                "{}: nothing rendered",
+                path.display()
+            );
+        }
     }
 }
 
-/// Renders `scene` in both modes, asserts the images and ray counts are identical and
-/// that scalar mode traced no packet, and returns the packet rendering.
-fn render_both(name: &str, scene: &Scene) -> Rendered {
+/// Renders `scene` in every mode, asserts the images and ray counts are identical and
+/// that scalar mode traced no packet, and returns each packet mode's rendering.
+fn render_all(name: &str, scene: &Scene) -> Vec<(Mode, Rendered)> {
     let tree = KdTree::build(&scene.geometry);
     let scalar = render(scene, &tree, Mode::Scalar, &|| {});
-    let packet = render(scene, &tree, Mode::Packet, &|| {});
+    let packet_modes = [Mode::Packet4, Mode::Packet8, Mode::Packet16];
+    packet_modes
+        .into_iter()
+        .map(|mode| {
+            let name = format!("{name} ({mode})");
+            (
+                mode,
+                same_as_scalar(&name, &scalar, render(scene, &tree, mode, &|| {})),
+            )
+        })
+        .collect()
+}
+
+/// Asserts that `packet` has the image and ray counts of `scalar`; returns it.
+fn same_as_scalar(name: &str, scalar: &Rendered, packet: Rendered) -> Rendered {
     assert_eq!(
         scalar.counts.packets,
         PacketCounts::default(),
@@ -128,16 +144,18 @@ position = [0.0, 3.0, -8.0]
 color = [1.0, 1.0, 1.0]
 "#,
     );
-    let c = render_both("mirror.toml", &scene).counts;
-    let quads = 16 * 12 / 4;
-    assert_eq!(c.reflection, 16 * 12);
-    let want = Batching {
-        packets: quads,
-        packet_rays: 16 * 12,
-        single_rays: 0,
-    };
-    assert_eq!(c.packets.secondary, want, "{c:?}");
-    assert_eq!(c.packets.primary, want, "{c:?}");
+    for (mode, r) in render_all("mirror.toml", &scene) {
+        let c = r.counts;
+        let blocks = 16 * 12 / mode.packet_size() as u64;
+        assert_eq!(c.reflection, 16 * 12);
+        let want = Batching {
+            packets: blocks,
+            packet_rays: 16 * 12,
+            single_rays: 0,
+        };
+        assert_eq!(c.packets.secondary, want, "{mode}: {c:?}");
+        assert_eq!(c.packets.primary, want, "{mode}: {c:?}");
+    }
 }
 
 /// A floor under two point lights and a sphere that shadows part of it: every camera
@@ -184,18 +202,20 @@ position = [3.0, 4.0, -1.0]
 color = [0.5, 0.5, 0.5]
 "#,
     );
-    let c = render_both("point_shadows.toml", &scene).counts;
-    let quads = 16 * 12 / 4;
-    assert!(
-        c.shadow > 2 * 16 * 12 - 16 && c.shadow <= 2 * 16 * 12,
-        "{c:?}"
-    );
-    let want = Batching {
-        packets: 2 * quads,
-        packet_rays: c.shadow,
-        single_rays: 0,
-    };
-    assert_eq!(c.packets.shadow, want, "{c:?}");
+    for (mode, r) in render_all("point_shadows.toml", &scene) {
+        let c = r.counts;
+        let blocks = 16 * 12 / mode.packet_size() as u64;
+        assert!(
+            c.shadow > 2 * 16 * 12 - 16 && c.shadow <= 2 * 16 * 12,
+            "{c:?}"
+        );
+        let want = Batching {
+            packets: 2 * blocks,
+            packet_rays: c.shadow,
+            single_rays: 0,
+        };
+        assert_eq!(c.packets.shadow, want, "{mode}: {c:?}");
+    }
 }
 
 /// A glass sphere in front of a mirror wall: refracted, totally internally reflected and
@@ -246,20 +266,26 @@ position = [3.0, 4.0, -2.0]
 color = [1.0, 1.0, 1.0]
 "#,
     );
-    let c = render_both("glass.toml", &scene).counts;
-    let s = c.packets.secondary;
-    assert!(c.refraction > 0, "{c:?}");
-    assert_eq!(
-        s.packet_rays + s.single_rays,
-        c.reflection + c.refraction,
-        "{c:?}"
-    );
-    assert!(s.packets > 0 && s.packet_rays > s.single_rays, "{c:?}");
+    for (mode, r) in render_all("glass.toml", &scene) {
+        let c = r.counts;
+        let s = c.packets.secondary;
+        assert!(c.refraction > 0, "{c:?}");
+        assert_eq!(
+            s.packet_rays + s.single_rays,
+            c.reflection + c.refraction,
+            "{mode}: {c:?}"
+        );
+        assert!(
+            s.packets > 0 && s.packet_rays > s.single_rays,
+            "{mode}: {c:?}"
+        );
+    }
 }
 
 /// Full 3x3 supersampling, a glossy floor and an area light: each pixel's 9 samples
-/// go as packets of 4, 4 and 1; each glossy hit's 6 rays as packets of 4 and 2; the
-/// area light's shadow rays in packets.
+/// go as packets of 4, 4 and 1 at 4 lanes (8 and 1 at 8, one packet at 16); each glossy
+/// hit's 6 rays as packets of 4 and 2 (one packet wider); the area light's shadow rays
+/// in packets.
 #[test]
 fn supersamples_glossy_and_area_light_rays_fill_packets() {
     let scene = parse(
@@ -305,20 +331,33 @@ color = [0.9, 0.9, 0.9]
 samples = 16
 "#,
     );
-    let c = render_both("glossy.toml", &scene).counts;
-    let pixels = 12 * 10;
-    assert_eq!(c.primary, 9 * pixels, "{c:?}");
-    let primary = Batching {
-        packets: 3 * pixels,
-        packet_rays: 9 * pixels,
-        single_rays: 0,
-    };
-    assert_eq!(c.packets.primary, primary, "{c:?}");
-    let g = c.packets.glossy;
-    assert!(c.glossy > 0 && c.glossy.is_multiple_of(6), "{c:?}");
-    assert_eq!(g.packets, c.glossy / 6 * 2, "{c:?}");
-    assert_eq!((g.packet_rays, g.single_rays), (c.glossy, 0), "{c:?}");
-    let sh = c.packets.shadow;
-    assert_eq!(sh.packet_rays + sh.single_rays, c.shadow, "{c:?}");
-    assert!(sh.packet_rays > sh.single_rays, "{c:?}");
+    for (mode, r) in render_all("glossy.toml", &scene) {
+        let c = r.counts;
+        let lanes = mode.packet_size() as u64;
+        let pixels = 12 * 10;
+        assert_eq!(c.primary, 9 * pixels, "{c:?}");
+        // A pixel's 9 samples: full packets and one partial one.
+        let primary = Batching {
+            packets: 9_u64.div_ceil(lanes) * pixels,
+            packet_rays: 9 * pixels,
+            single_rays: 0,
+        };
+        assert_eq!(c.packets.primary, primary, "{mode}: {c:?}");
+        // A glossy hit's 6 rays: 4 + 2 at 4 lanes, one packet wider.
+        let g = c.packets.glossy;
+        assert!(c.glossy > 0 && c.glossy.is_multiple_of(6), "{c:?}");
+        assert_eq!(
+            g.packets,
+            c.glossy / 6 * 6_u64.div_ceil(lanes),
+            "{mode}: {c:?}"
+        );
+        assert_eq!(
+            (g.packet_rays, g.single_rays),
+            (c.glossy, 0),
+            "{mode}: {c:?}"
+        );
+        let sh = c.packets.shadow;
+        assert_eq!(sh.packet_rays + sh.single_rays, c.shadow, "{mode}: {c:?}");
+        assert!(sh.packet_rays > sh.single_rays, "{mode}: {c:?}");
+    }
 }

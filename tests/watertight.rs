@@ -8,6 +8,7 @@ mod common;
 
 use common::closed::{aimed_rays, closed_meshes, interior_rays, leaks_packet, leaks_scalar};
 use raypack::accel::kdtree::KdTree;
+use raypack::simd::{W4, W8, W16};
 
 const RANDOM_RAYS: usize = 1 << 20;
 const AIMED_RAYS: usize = 1 << 18;
@@ -25,16 +26,17 @@ fn closed_meshes_leak_no_ray() {
             ("aimed", aimed_rays(mesh, AIMED_RAYS, 200 + m as u64)),
         ];
         for (set, rays) in &sets {
-            for path in ["scalar", "packet"] {
+            for path in ["scalar", "packet4", "packet8", "packet16"] {
                 let start = std::time::Instant::now();
-                let leaks = if path == "scalar" {
-                    leaks_scalar(&tree, rays)
-                } else {
-                    leaks_packet(&tree, rays)
+                let leaks = match path {
+                    "scalar" => leaks_scalar(&tree, rays),
+                    "packet4" => leaks_packet::<W4>(&tree, rays),
+                    "packet8" => leaks_packet::<W8>(&tree, rays),
+                    _ => leaks_packet::<W16>(&tree, rays),
                 };
                 let elapsed = start.elapsed();
                 let line = format!(
-                    "{:<12} {:>7} tris  {set:<6} {path:<6} {:>4} leaks / {} rays ({elapsed:.2?})",
+                    "{:<12} {:>7} tris  {set:<6} {path:<8} {:>4} leaks / {} rays ({elapsed:.2?})",
                     mesh.name,
                     mesh.geometry.triangles.len(),
                     leaks.len(),
@@ -49,5 +51,5 @@ fn closed_meshes_leak_no_ray() {
         }
     }
     assert!(failures.is_empty(), "leaks:\n{}", failures.join("\n"));
-    assert_eq!(report.len(), 4 * 2 * 2);
+    assert_eq!(report.len(), 4 * 2 * 4, "meshes x ray sets x paths");
 }

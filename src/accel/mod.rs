@@ -16,6 +16,7 @@ pub mod watertight;
 
 use crate::ray::{Hit, Ray};
 use crate::scene::{Aabb, Geometry, Plane, Sphere};
+use crate::simd::{LaneBits, Simd, W4, W8, W16, native_lanes};
 use glam::Vec3;
 pub use packet::{HitPacket, RayPacket};
 use triaccel::TriAccel;
@@ -38,23 +39,231 @@ pub trait Accel: Sync {
     /// True when anything lies between `ray.t_min` and `ray.t_max`.
     fn occluded(&self, ray: &Ray) -> bool;
 
-    /// Closest hits of the active lanes of `rays`; inactive lanes get [`Hit::MISS`].
-    fn intersect_packet(&self, rays: &RayPacket) -> HitPacket {
-        HitPacket::from_lanes(|i| match rays.lane(i) {
-            Some(r) => self.intersect(&r).unwrap_or(Hit::MISS),
-            None => Hit::MISS,
-        })
+    /// Closest hits of the active lanes of a 4-lane packet; inactive lanes get
+    /// [`Hit::MISS`]. One method per width keeps the trait usable as `dyn Accel`;
+    /// callers go through [`PacketTrace`], generic over the width.
+    fn intersect_packet4(&self, rays: &RayPacket<W4>) -> HitPacket<W4> {
+        lane_by_lane(self, rays)
+    }
+    /// [`Accel::intersect_packet4`] at 8 lanes.
+    fn intersect_packet8(&self, rays: &RayPacket<W8>) -> HitPacket<W8> {
+        lane_by_lane(self, rays)
+    }
+    /// [`Accel::intersect_packet4`] at 16 lanes.
+    fn intersect_packet16(&self, rays: &RayPacket<W16>) -> HitPacket<W16> {
+        lane_by_lane(self, rays)
     }
 
-    /// Bit `i` set when active lane `i` is occluded.
-    fn occluded_packet(&self, rays: &RayPacket) -> u32 {
+    /// Bit `i` set when active lane `i` of a 4-lane packet is occluded.
+    fn occluded_packet4(&self, rays: &RayPacket<W4>) -> LaneBits {
+        occluded_lane_by_lane(self, rays)
+    }
+    /// [`Accel::occluded_packet4`] at 8 lanes.
+    fn occluded_packet8(&self, rays: &RayPacket<W8>) -> LaneBits {
+        occluded_lane_by_lane(self, rays)
+    }
+    /// [`Accel::occluded_packet4`] at 16 lanes.
+    fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
+        occluded_lane_by_lane(self, rays)
+    }
+
+    /// Closest hits of a tile of up to 64 coherent rays into `out` (same length), misses
+    /// as [`Hit::MISS`]; the kd-tree traces them as SIMD groups sharing one entry point.
+    fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
+        for (r, h) in rays.iter().zip(out.iter_mut()) {
+            *h = self.intersect(r).unwrap_or(Hit::MISS);
+        }
+    }
+
+    /// Bit `i` set when ray `i` of a tile of up to 64 rays is occluded.
+    fn occluded_tile(&self, rays: &[Ray]) -> u64 {
         let mut bits = 0;
-        for i in 0..crate::simd::LANES {
-            if rays.lane(i).is_some_and(|r| self.occluded(&r)) {
-                bits |= 1 << i;
-            }
+        for (i, r) in rays.iter().enumerate() {
+            bits |= (self.occluded(r) as u64) << i;
         }
         bits
+    }
+}
+
+/// The packet entry points' default: each active lane through the single-ray method.
+fn lane_by_lane<A: Accel + ?Sized, W: Simd>(a: &A, rays: &RayPacket<W>) -> HitPacket<W> {
+    HitPacket::from_lanes(|i| match rays.lane(i) {
+        Some(r) => a.intersect(&r).unwrap_or(Hit::MISS),
+        None => Hit::MISS,
+    })
+}
+
+fn occluded_lane_by_lane<A: Accel + ?Sized, W: Simd>(a: &A, rays: &RayPacket<W>) -> LaneBits {
+    let mut bits = 0;
+    for i in 0..W::LANES {
+        if rays.lane(i).is_some_and(|r| a.occluded(&r)) {
+            bits |= 1 << i;
+        }
+    }
+    bits
+}
+
+/// Which entry points trace rays, at which width: the one mode `raypack bench`,
+/// `trace` and `render` select.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// One ray at a time: the reference.
+    #[default]
+    Scalar,
+    /// 4 consecutive rays per packet (SSE registers): the Wald packet.
+    Packet4,
+    /// 8 consecutive rays per packet (AVX2 registers).
+    Packet8,
+    /// 16 consecutive rays per packet (AVX-512 registers).
+    Packet16,
+    /// 64 consecutive rays as one tile of SIMD groups of the native width, sharing an
+    /// entry point ([`kdtree::traverse_tile`]).
+    Tile64,
+}
+
+impl Mode {
+    /// Every mode, narrowest first.
+    pub const ALL: [Mode; 5] = [
+        Mode::Scalar,
+        Mode::Packet4,
+        Mode::Packet8,
+        Mode::Packet16,
+        Mode::Tile64,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Scalar => "scalar",
+            Mode::Packet4 => "packet4",
+            Mode::Packet8 => "packet8",
+            Mode::Packet16 => "packet16",
+            Mode::Tile64 => "tile64",
+        }
+    }
+
+    /// Rays traced together (1 for scalar).
+    pub fn packet_size(self) -> usize {
+        match self {
+            Mode::Scalar => 1,
+            Mode::Packet4 => 4,
+            Mode::Packet8 => 8,
+            Mode::Packet16 => 16,
+            Mode::Tile64 => 64,
+        }
+    }
+
+    /// SIMD lanes of the kernels (1 for scalar).
+    pub fn width(self) -> usize {
+        match self {
+            Mode::Tile64 => tile_lanes(),
+            _ => self.packet_size(),
+        }
+    }
+
+    /// The packet mode that traces this mode's SIMD groups one at a time: a tile's
+    /// groups for [`Mode::Tile64`], the mode itself otherwise.
+    pub fn group_mode(self) -> Mode {
+        match (self, tile_lanes()) {
+            (Mode::Tile64, 16) => Mode::Packet16,
+            (Mode::Tile64, _) => Mode::Packet8,
+            (m, _) => m,
+        }
+    }
+
+    /// The packet mode of the widest registers this CPU runs natively.
+    pub fn native_packet() -> Mode {
+        match native_lanes() {
+            16 => Mode::Packet16,
+            8 => Mode::Packet8,
+            _ => Mode::Packet4,
+        }
+    }
+
+    /// Parses a comma-separated list of modes, where `all` stands for [`Mode::ALL`].
+    pub fn parse_list(s: &str) -> Result<Vec<Mode>, String> {
+        let mut out = Vec::new();
+        for name in s.split(',') {
+            if name == "all" {
+                out.extend(Mode::ALL);
+            } else {
+                out.push(name.parse()?);
+            }
+        }
+        out.dedup();
+        Ok(out)
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    /// `packet` names the native packet mode ([`Mode::native_packet`]).
+    fn from_str(s: &str) -> Result<Mode, String> {
+        match s {
+            "scalar" => Ok(Mode::Scalar),
+            "packet" => Ok(Mode::native_packet()),
+            "packet4" => Ok(Mode::Packet4),
+            "packet8" => Ok(Mode::Packet8),
+            "packet16" => Ok(Mode::Packet16),
+            "tile64" => Ok(Mode::Tile64),
+            _ => Err(format!(
+                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, tile64, packet or all)"
+            )),
+        }
+    }
+}
+
+/// Lanes of a tile's SIMD groups: 16 with AVX-512, else 8.
+pub fn tile_lanes() -> usize {
+    native_lanes().max(8)
+}
+
+/// A width the accelerators trace packets at: maps `W` to its [`Accel`] method.
+pub trait PacketWidth: Simd {
+    fn intersect<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> HitPacket<Self>;
+    fn occluded<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> LaneBits;
+}
+
+macro_rules! packet_width {
+    ($w:ty, $i:ident, $o:ident) => {
+        impl PacketWidth for $w {
+            #[inline]
+            fn intersect<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> HitPacket<Self> {
+                a.$i(rays)
+            }
+            #[inline]
+            fn occluded<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> LaneBits {
+                a.$o(rays)
+            }
+        }
+    };
+}
+
+packet_width!(W4, intersect_packet4, occluded_packet4);
+packet_width!(W8, intersect_packet8, occluded_packet8);
+packet_width!(W16, intersect_packet16, occluded_packet16);
+
+/// Packet tracing at any width, for every accelerator (`dyn Accel` included).
+pub trait PacketTrace {
+    /// Closest hits of the active lanes of `rays`; inactive lanes get [`Hit::MISS`].
+    fn intersect_packet<W: PacketWidth>(&self, rays: &RayPacket<W>) -> HitPacket<W>;
+    /// Bit `i` set when active lane `i` is occluded.
+    fn occluded_packet<W: PacketWidth>(&self, rays: &RayPacket<W>) -> LaneBits;
+}
+
+impl<A: Accel + ?Sized> PacketTrace for A {
+    #[inline]
+    fn intersect_packet<W: PacketWidth>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
+        W::intersect(self, rays)
+    }
+    #[inline]
+    fn occluded_packet<W: PacketWidth>(&self, rays: &RayPacket<W>) -> LaneBits {
+        W::occluded(self, rays)
     }
 }
 

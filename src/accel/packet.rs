@@ -1,89 +1,117 @@
 //! Ray packets in structure-of-arrays form: one SIMD register per component, one ray
-//! per lane (Wald 2004, chapter 6). The lane count comes from [`crate::simd::LANES`].
+//! per lane (Wald 2004, chapter 6), at any width `W` of [`crate::simd`].
 
 use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
 use crate::scene::CameraFrame;
-use crate::simd::{LANES, Mask, Vf, Vu, mask_from_bits, max_abs, select, select_u};
+use crate::simd::{
+    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, block_pixel, max_abs,
+};
 use glam::Vec3;
 
-/// `LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel: their
-/// values (NaN included) never influence the active lanes, and their outputs stay as
-/// they were.
+/// `W::LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel:
+/// their values (NaN included) never influence the active lanes, and their outputs stay
+/// as they were.
 #[derive(Clone, Copy, Debug)]
-pub struct RayPacket {
-    pub org: [Vf; 3],
-    pub dir: [Vf; 3],
+pub struct RayPacket<W: Simd> {
+    pub org: [Vf<W>; 3],
+    pub dir: [Vf<W>; 3],
     /// `1 / dir`, computed with a true division (not `rcp`) so traversal matches the
     /// scalar path bit for bit.
-    pub inv_dir: [Vf; 3],
-    pub t_min: Vf,
-    pub t_max: Vf,
+    pub inv_dir: [Vf<W>; 3],
+    pub t_min: Vf<W>,
+    pub t_max: Vf<W>,
     /// Lane mask of the rays to trace.
-    pub active: Mask,
+    pub active: Mask<W>,
 }
 
-impl RayPacket {
-    /// Packs up to `LANES` rays; lanes past `rays.len()` are inactive.
-    pub fn from_rays(rays: &[Ray]) -> RayPacket {
-        assert!(rays.len() <= LANES, "a packet holds at most {LANES} rays");
-        let mut o = [[0.0f32; LANES]; 3];
-        let mut d = [[0.0f32; LANES]; 3];
-        let mut t_min = [0.0f32; LANES];
-        let mut t_max = [0.0f32; LANES];
-        for (i, r) in rays.iter().enumerate() {
-            for a in 0..3 {
-                o[a][i] = r.org[a];
-                d[a][i] = r.dir[a];
-            }
-            t_min[i] = r.t_min;
-            t_max[i] = r.t_max;
-        }
-        let org = o.map(Vf::from);
-        let dir = d.map(Vf::from);
+/// The value of an unused lane: a usable ray with an empty interval.
+const FILL: Ray = Ray {
+    org: Vec3::ZERO,
+    dir: Vec3::X,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
+/// The lowest `n` bits set.
+#[inline]
+pub fn low_bits(n: usize) -> LaneBits {
+    if n == 0 {
+        0
+    } else {
+        LaneBits::MAX >> (LaneBits::BITS as usize - n)
+    }
+}
+
+impl<W: Simd> RayPacket<W> {
+    /// Packs up to `W::LANES` rays; lanes past `rays.len()` are inactive.
+    #[inline]
+    pub fn from_rays(rays: &[Ray]) -> RayPacket<W> {
+        assert!(
+            rays.len() <= W::LANES,
+            "a packet holds at most {} rays",
+            W::LANES
+        );
+        let get = |i: usize| rays.get(i).unwrap_or(&FILL);
+        let org = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).org[a]));
+        let dir = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).dir[a]));
         RayPacket {
             org,
             dir,
-            inv_dir: dir.map(|x| Vf::ONE / x),
-            t_min: Vf::from(t_min),
-            t_max: Vf::from(t_max),
-            active: mask_from_bits((1u32 << rays.len()) - 1),
+            inv_dir: dir.map(|x| Vf::<W>::ONE / x),
+            t_min: Vf::<W>::from_fn(|i| get(i).t_min),
+            t_max: Vf::<W>::from_fn(|i| get(i).t_max),
+            active: Mask::<W>::from_bits(low_bits(rays.len())),
         }
     }
 
-    /// Packs the rays of the `Some` lanes; `None` lanes are inactive.
-    pub fn from_lanes(rays: &[Option<Ray>; LANES]) -> RayPacket {
-        let fill = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0);
-        let mut p = RayPacket::from_rays(&rays.map(|r| r.unwrap_or(fill)));
-        let live = (0..LANES).filter(|&i| rays[i].is_some());
-        p.active = mask_from_bits(live.fold(0, |m, i| m | (1 << i)));
+    /// Packs the rays of the `Some` lanes (at most `W::LANES`); `None` lanes and lanes
+    /// past the slice are inactive.
+    pub fn from_lanes(rays: &[Option<Ray>]) -> RayPacket<W> {
+        assert!(
+            rays.len() <= W::LANES,
+            "a packet holds at most {} rays",
+            W::LANES
+        );
+        let mut filled = [FILL; MAX_LANES];
+        let mut live = 0;
+        for (i, r) in rays.iter().enumerate() {
+            if let Some(r) = r {
+                filled[i] = *r;
+                live |= 1 << i;
+            }
+        }
+        let mut p = RayPacket::from_rays(&filled[..W::LANES]);
+        p.active = Mask::<W>::from_bits(live);
         p
     }
 
-    /// The camera rays of the 2x2 pixel quad whose top-left pixel is `(x, y)`, in
-    /// RAYS.md's lane order: `(x, y)`, `(x + 1, y)`, `(x, y + 1)`, `(x + 1, y + 1)`.
-    pub fn camera_quad(frame: &CameraFrame, x: u32, y: u32) -> [Ray; LANES] {
-        let pixel = |i: u32| {
-            let (px, py) = (x + (i & 1), y + (i >> 1));
-            frame.ray(px as f32 + 0.5, py as f32 + 0.5)
-        };
-        std::array::from_fn(|i| pixel(i as u32))
+    /// The camera rays of the `W::SHAPE` pixel block whose top-left pixel is `(x, y)`,
+    /// lane `i` through the centre of pixel `(x, y) + block_pixel(i)`: for 4 lanes
+    /// RAYS.md's quad, `(x, y)`, `(x + 1, y)`, `(x, y + 1)`, `(x + 1, y + 1)`.
+    pub fn camera_block(frame: &CameraFrame, x: u32, y: u32) -> Vec<Ray> {
+        (0..W::LANES)
+            .map(|i| {
+                let (dx, dy) = block_pixel::<W>(i);
+                frame.ray((x + dx) as f32 + 0.5, (y + dy) as f32 + 0.5)
+            })
+            .collect()
     }
 
     /// Lanes that can hit anything; the twin of [`Ray::is_usable`] (finite origin and
     /// direction, the direction's largest component in [`DIR_MIN`, `DIR_MAX`],
     /// `t_min <= t_max`).
     #[inline]
-    pub fn usable(&self) -> Mask {
-        let finite = |v: &[Vf; 3]| v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
+    pub fn usable(&self) -> Mask<W> {
+        let finite = |v: &[Vf<W>; 3]| v[0].finite() & v[1].finite() & v[2].finite();
         let d_max = max_abs(&self.dir);
-        let scaled = d_max.simd_ge(Vf::splat(DIR_MIN)) & d_max.simd_le(Vf::splat(DIR_MAX));
-        finite(&self.org) & finite(&self.dir) & scaled & self.t_min.simd_le(self.t_max)
+        let scaled = d_max.cmp_ge(Vf::<W>::splat(DIR_MIN)) & d_max.cmp_le(Vf::<W>::splat(DIR_MAX));
+        finite(&self.org) & finite(&self.dir) & scaled & self.t_min.cmp_le(self.t_max)
     }
 
     /// Bit `i` set when lane `i` is active.
     #[inline]
-    pub fn active_bits(&self) -> u32 {
-        crate::simd::bits(self.active)
+    pub fn active_bits(&self) -> LaneBits {
+        self.active.bits()
     }
 
     /// Lane `i` as a scalar ray, or `None` when it is inactive.
@@ -91,12 +119,12 @@ impl RayPacket {
         if self.active_bits() & (1 << i) == 0 {
             return None;
         }
-        let c = |v: &[Vf; 3]| Vec3::new(v[0].as_array()[i], v[1].as_array()[i], v[2].as_array()[i]);
+        let c = |v: &[Vf<W>; 3]| Vec3::new(v[0].lane(i), v[1].lane(i), v[2].lane(i));
         Some(Ray::new(
             c(&self.org),
             c(&self.dir),
-            self.t_min.as_array()[i],
-            self.t_max.as_array()[i],
+            self.t_min.lane(i),
+            self.t_max.lane(i),
         ))
     }
 }
@@ -125,43 +153,44 @@ pub fn quad_order(width: u32, height: u32) -> Vec<(u32, u32)> {
 /// One primitive's hits against a packet: lane `i` hit where `mask` is set (never for an
 /// inactive lane); `t`, `u`, `v` are meaningful only there.
 #[derive(Clone, Copy, Debug)]
-pub struct LaneHits {
-    pub mask: Mask,
-    pub t: Vf,
-    pub u: Vf,
-    pub v: Vf,
+pub struct LaneHits<W: Simd> {
+    pub mask: Mask<W>,
+    pub t: Vf<W>,
+    pub u: Vf<W>,
+    pub v: Vf<W>,
 }
 
-impl LaneHits {
+impl<W: Simd> LaneHits<W> {
     /// No lane hit.
     #[inline]
-    pub fn none() -> LaneHits {
+    pub fn none() -> LaneHits<W> {
         LaneHits {
-            mask: Mask::ZERO,
-            t: Vf::ZERO,
-            u: Vf::ZERO,
-            v: Vf::ZERO,
+            mask: Mask::<W>::NONE,
+            t: Vf::<W>::ZERO,
+            u: Vf::<W>::ZERO,
+            v: Vf::<W>::ZERO,
         }
     }
 }
 
 /// Closest hits of a packet, one lane per ray; a miss has `t = +inf`, `prim = NO_HIT`.
 #[derive(Clone, Copy, Debug)]
-pub struct HitPacket {
-    pub t: Vf,
-    pub u: Vf,
-    pub v: Vf,
-    pub prim: Vu,
+pub struct HitPacket<W: Simd> {
+    pub t: Vf<W>,
+    pub u: Vf<W>,
+    pub v: Vf<W>,
+    pub prim: Vu<W>,
 }
 
-impl HitPacket {
+impl<W: Simd> HitPacket<W> {
     /// All lanes missed.
-    pub fn miss() -> HitPacket {
+    #[inline]
+    pub fn miss() -> HitPacket<W> {
         HitPacket {
-            t: Vf::splat(f32::INFINITY),
-            u: Vf::ZERO,
-            v: Vf::ZERO,
-            prim: Vu::splat(NO_HIT),
+            t: Vf::<W>::splat(f32::INFINITY),
+            u: Vf::<W>::ZERO,
+            v: Vf::<W>::ZERO,
+            prim: Vu::<W>::splat(NO_HIT),
         }
     }
 
@@ -169,36 +198,40 @@ impl HitPacket {
     /// `prim`'s, in the order of [`Hit::is_closer`] (smaller `t`, ties to the smaller id).
     /// Returns the lanes that changed.
     #[inline]
-    pub fn merge(&mut self, hits: &LaneHits, prim: u32) -> Mask {
-        let prim_v = Vu::splat(prim);
-        let smaller_id = Mask::from_bits(self.prim.simd_gt(prim_v));
-        let closer = hits.t.simd_lt(self.t) | (hits.t.simd_eq(self.t) & smaller_id);
+    pub fn merge(&mut self, hits: &LaneHits<W>, prim: u32) -> Mask<W> {
+        let prim_v = Vu::<W>::splat(prim);
+        let smaller_id = self.prim.cmp_gt(prim_v);
+        let closer = hits.t.cmp_lt(self.t) | (hits.t.cmp_eq(self.t) & smaller_id);
         let take = hits.mask & closer;
-        self.t = select(take, hits.t, self.t);
-        self.u = select(take, hits.u, self.u);
-        self.v = select(take, hits.v, self.v);
-        self.prim = select_u(take, prim_v, self.prim);
+        self.t = Vf::<W>::select(take, hits.t, self.t);
+        self.u = Vf::<W>::select(take, hits.u, self.u);
+        self.v = Vf::<W>::select(take, hits.v, self.v);
+        self.prim = Vu::<W>::select(take, prim_v, self.prim);
         take
     }
 
-    /// Builds a packet lane by lane.
-    pub fn from_lanes(mut f: impl FnMut(usize) -> Hit) -> HitPacket {
-        let hits: [Hit; LANES] = std::array::from_fn(&mut f);
+    /// Builds a packet lane by lane (`f` is called once per lane, in lane order).
+    pub fn from_lanes(mut f: impl FnMut(usize) -> Hit) -> HitPacket<W> {
+        let mut hits = [Hit::MISS; MAX_LANES];
+        for (i, h) in hits.iter_mut().enumerate().take(W::LANES) {
+            *h = f(i);
+        }
         HitPacket {
-            t: Vf::from(hits.map(|h| h.t)),
-            u: Vf::from(hits.map(|h| h.u)),
-            v: Vf::from(hits.map(|h| h.v)),
-            prim: Vu::from(hits.map(|h| h.prim)),
+            t: Vf::<W>::from_fn(|i| hits[i].t),
+            u: Vf::<W>::from_fn(|i| hits[i].u),
+            v: Vf::<W>::from_fn(|i| hits[i].v),
+            prim: Vu::<W>::from_fn(|i| hits[i].prim),
         }
     }
 
     /// Lane `i` as a scalar hit.
+    #[inline]
     pub fn lane(&self, i: usize) -> Hit {
         Hit {
-            t: self.t.as_array()[i],
-            u: self.u.as_array()[i],
-            v: self.v.as_array()[i],
-            prim: self.prim.as_array()[i],
+            t: self.t.lane(i),
+            u: self.u.lane(i),
+            v: self.v.lane(i),
+            prim: self.prim.lane(i),
         }
     }
 }

@@ -71,13 +71,13 @@ pub const C2: f32 = 64.0;
 /// times four. Lanes farther than this outside `(t_min, t_max)` leave at once.
 pub const T_SLACK: f32 = 1.0 / (1u32 << 17) as f32;
 
-/// `if a < b { a } else { b }`: the order of [`crate::simd::min_lt`].
+/// `if a < b { a } else { b }`: the order of [`crate::simd::Float::min_lt`].
 #[inline]
 pub fn min_lt(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-/// `if a > b { a } else { b }`: the order of [`crate::simd::max_gt`].
+/// `if a > b { a } else { b }`: the order of [`crate::simd::Float::max_gt`].
 #[inline]
 pub fn max_gt(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }

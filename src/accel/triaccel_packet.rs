@@ -1,4 +1,4 @@
-//! Packet twin of [`crate::accel::triaccel`]: one TriAccel record against `LANES` rays
+//! Packet twin of [`crate::accel::triaccel`]: one TriAccel record against a packet's rays
 //! (Wald 2004, PhD thesis, section 7.2: the SIMD form of the projected test).
 //!
 //! The projection axis `k` belongs to the triangle, so it is one scalar for the whole
@@ -12,20 +12,21 @@
 
 use super::packet::{LaneHits, RayPacket};
 use super::triaccel::{C1, C2, MOD3, T_SLACK, TriAccel, exact_rule};
-use crate::simd::{LANES, Mask, Vf, bits, mask_from_bits, max_abs, min_lt, none, splat};
+use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
 use glam::Vec3;
 
 impl TriAccel {
     /// Intersects the lanes of `rays` set in `active` with the triangle for
     /// `t_min < t < t_max` (per lane); `corners` as in [`TriAccel::intersect`].
-    #[inline]
-    pub fn intersect_packet(
+    #[inline(always)]
+    pub fn intersect_packet<W: Simd>(
         &self,
-        rays: &RayPacket,
-        active: Mask,
-        t_max: Vf,
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+        t_max: Vf<W>,
         corners: &[Vec3; 3],
-    ) -> LaneHits {
+    ) -> LaneHits<W> {
+        let splat = Vf::<W>::splat;
         let k = self.k as usize;
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let (o, d) = (&rays.org, &rays.dir);
@@ -38,20 +39,20 @@ impl TriAccel {
         let reach = splat(self.mag) + o_max + t.abs() * d_max;
         let slack = reach * splat(T_SLACK);
         let mask =
-            active & ((t - t_max) * ad).simd_lt(slack) & ((rays.t_min - t) * ad).simd_lt(slack);
-        if none(mask) {
+            active & ((t - t_max) * ad).cmp_lt(slack) & ((rays.t_min - t) * ad).cmp_lt(slack);
+        if mask.none() {
             return LaneHits::none();
         }
         let hu = o[ku] + t * d[ku];
         let hv = o[kv] + t * d[kv];
         let u = hu * splat(self.b_nu) + hv * splat(self.b_nv) + splat(self.b_d);
         let v = hu * splat(self.c_nu) + hv * splat(self.c_nv) + splat(self.c_d);
-        let w = Vf::ONE - u - v;
+        let w = Vf::<W>::ONE - u - v;
         let bound = splat(self.err) * reach * (splat(C1) * d_max + splat(C2) * ad);
-        let edge = min_lt(min_lt(u, v), w) * ad;
-        let inside = edge.simd_ge(bound);
-        let sure = mask & inside & t.simd_gt(rays.t_min) & t.simd_lt(t_max);
-        let unsure = bits(mask & !inside & edge.simd_ge(-bound));
+        let edge = u.min_lt(v).min_lt(w) * ad;
+        let inside = edge.cmp_ge(bound);
+        let sure = mask & inside & t.cmp_gt(rays.t_min) & t.cmp_lt(t_max);
+        let unsure = (mask & !inside & edge.cmp_ge(-bound)).bits();
         if unsure == 0 {
             return LaneHits {
                 mask: sure,
@@ -60,23 +61,27 @@ impl TriAccel {
                 v,
             };
         }
-        let (mut tt, mut uu, mut vv) = (t.to_array(), u.to_array(), v.to_array());
-        let mut hit = bits(sure);
-        let t_max = t_max.to_array();
-        for i in 0..LANES {
-            if unsure & (1 << i) != 0
-                && let Some(ray) = rays.lane(i)
-                && let Some((ti, ui, vi)) = exact_rule(&ray, t_max[i], corners)
+        let (mut tt, mut uu, mut vv) = (t, u, v);
+        let mut hit = sure.bits();
+        let mut left = unsure;
+        while left != 0 {
+            let i = left.trailing_zeros() as usize;
+            left &= left - 1;
+            if let Some(ray) = rays.lane(i)
+                && let Some((ti, ui, vi)) = exact_rule(&ray, t_max.lane(i), corners)
             {
-                (tt[i], uu[i], vv[i]) = (ti, ui, vi);
+                let lane = Mask::<W>::from_bits(1 << i);
+                tt = Vf::<W>::select(lane, splat(ti), tt);
+                uu = Vf::<W>::select(lane, splat(ui), uu);
+                vv = Vf::<W>::select(lane, splat(vi), vv);
                 hit |= 1 << i;
             }
         }
         LaneHits {
-            mask: mask_from_bits(hit),
-            t: Vf::from(tt),
-            u: Vf::from(uu),
-            v: Vf::from(vv),
+            mask: Mask::<W>::from_bits(hit),
+            t: tt,
+            u: uu,
+            v: vv,
         }
     }
 }

@@ -11,12 +11,16 @@ use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::RayPacket;
+use raypack::accel::kdtree::stats::{self, TraversalCounts};
 use raypack::accel::kdtree::traverse_packet::sign_group_count;
+use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, TileCounts, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::ray::Ray;
 use raypack::rayset::scenes::BenchScene;
 use raypack::rayset::trace::{Query, checksum_set};
 use raypack::rayset::{self, Checksum, Mode, RaySet, StandardSets, standard};
 use raypack::scene::Geometry;
+use raypack::simd::{Simd, W4, W8, W16};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -54,10 +58,11 @@ pub struct Args {
     /// Ray sets to trace (primary, shadow, diffuse).
     #[arg(long, value_delimiter = ',', default_value = "primary,shadow,diffuse")]
     pub sets: Vec<String>,
-    /// Modes: scalar (one ray at a time), packet (4 consecutive rays). Rates are
-    /// Mrays/s.
-    #[arg(long, value_delimiter = ',', default_value = "scalar,packet")]
-    pub modes: Vec<Mode>,
+    /// Modes: scalar (one ray at a time), packet4, packet8, packet16 (4, 8 or 16
+    /// consecutive rays, one SIMD lane each), packet (the widest this CPU runs natively)
+    /// or all. Rates are Mrays/s.
+    #[arg(long, default_value = "scalar,packet", value_parser = |s: &str| Mode::parse_list(s).map(Modes))]
+    pub modes: Modes,
     /// Thread counts (default: 1 and every core; 0 means every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
@@ -81,6 +86,10 @@ pub struct Args {
     pub tree: super::TreeArgs,
 }
 
+/// `--modes`: a comma-separated list, `all` standing for every mode.
+#[derive(Clone, Debug)]
+pub struct Modes(pub Vec<Mode>);
+
 #[derive(Serialize, Debug)]
 pub struct Machine {
     pub cpu: String,
@@ -92,6 +101,10 @@ pub struct Machine {
 pub struct Row {
     pub set: String,
     pub mode: String,
+    /// SIMD lanes of the kernels (1 for scalar).
+    pub width: usize,
+    /// Rays traced together.
+    pub packet_size: usize,
     pub threads: usize,
     pub rays: usize,
     pub mrays_median: f64,
@@ -115,9 +128,10 @@ pub struct Report {
     pub height: u32,
     pub light: [f64; 3],
     pub light_source: String,
-    /// Per set: packets of 4 consecutive rays whose lanes disagree on a direction sign
-    /// (the packet path traces them as one group per sign octant), and all packets.
-    pub split_packets: std::collections::BTreeMap<String, [usize; 2]>,
+    /// Per set and packet mode: packets whose lanes disagree on a direction sign (the
+    /// packet path traces them as one group per sign octant), and all packets.
+    pub split_packets:
+        std::collections::BTreeMap<String, std::collections::BTreeMap<String, [usize; 2]>>,
     /// 1-minute load average before and after the timed passes.
     pub load_average: [f64; 2],
     pub results: Vec<Row>,
@@ -133,15 +147,33 @@ fn set_named<'s>(sets: &'s StandardSets, name: &str) -> &'s RaySet {
     }
 }
 
-/// `[split, total]`: the packets of 4 consecutive rays of `set` (as the packet mode
+/// `[split, total]`: the packets of `mode` (consecutive rays of `set`, as the mode
 /// traces them) whose lanes disagree on a direction sign, and all of them.
-fn split_packets(set: &RaySet) -> [usize; 2] {
-    let packets = set.rays.chunks(raypack::simd::LANES);
-    let total = packets.len();
-    let split = packets
-        .filter(|quad| sign_group_count(&RayPacket::from_rays(quad)) > 1)
-        .count();
-    [split, total]
+fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
+    fn of<W: Simd>(set: &RaySet) -> [usize; 2] {
+        let packets = set.rays.chunks(W::LANES);
+        let total = packets.len();
+        let split = packets
+            .filter(|group| sign_group_count(&RayPacket::<W>::from_rays(group)) > 1)
+            .count();
+        [split, total]
+    }
+    match mode {
+        Mode::Scalar => [0, set.len()],
+        Mode::Packet4 => of::<W4>(set),
+        Mode::Packet8 => of::<W8>(set),
+        Mode::Packet16 => of::<W16>(set),
+        Mode::Tile64 => {
+            let tiles = set.rays.chunks(TILE_RAYS);
+            let total = tiles.len();
+            let mixed = |tile: &[Ray]| {
+                (0..3).any(|a| {
+                    tile.iter().any(|r| r.dir[a] < 0.0) && tile.iter().any(|r| r.dir[a] > 0.0)
+                })
+            };
+            [tiles.filter(|t| mixed(t)).count(), total]
+        }
+    }
 }
 
 /// CPU model, logical cores and the SIMD level this binary was built for.
@@ -208,6 +240,25 @@ fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
         })
         .build()
         .context("starting the tracing threads")
+}
+
+/// The tile counts of every thread of `pool`, summed.
+fn pool_tile_counts(pool: &rayon::ThreadPool) -> TileCounts {
+    pool.broadcast(|_| tile_counts())
+        .into_iter()
+        .fold(TileCounts::default(), |a, c| TileCounts {
+            tiles: a.tiles + c.tiles,
+            fallbacks: a.fallbacks + c.fallbacks,
+            entry_depth: a.entry_depth + c.entry_depth,
+        })
+}
+
+/// The traversal counters of every thread of `pool`, summed (zero without the `stats`
+/// feature).
+fn pool_traversal_counts(pool: &rayon::ThreadPool) -> TraversalCounts {
+    pool.broadcast(|_| stats::counts())
+        .into_iter()
+        .fold(TraversalCounts::default(), TraversalCounts::plus)
 }
 
 /// Median of a non-empty list.
@@ -311,27 +362,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sets.light_source.describe(),
         sets.offset
     );
-    let split_packets: Vec<(String, [usize; 2])> = args
+    let packet_modes: Vec<Mode> = args
+        .modes
+        .0
+        .iter()
+        .copied()
+        .filter(|&m| m != Mode::Scalar)
+        .collect();
+    let split_packets: std::collections::BTreeMap<
+        String,
+        std::collections::BTreeMap<String, [usize; 2]>,
+    > = args
         .sets
         .iter()
-        .map(|name| (name.clone(), split_packets(set_named(&sets, name))))
+        .map(|name| {
+            let set = set_named(&sets, name);
+            let per_mode = packet_modes
+                .iter()
+                .map(|&m| (m.to_string(), split_packets(set, m)))
+                .collect();
+            (name.clone(), per_mode)
+        })
         .collect();
-    if args.modes.contains(&Mode::Packet) {
+    for mode in &packet_modes {
         let shares: Vec<String> = split_packets
             .iter()
-            .map(|(name, [split, total])| {
-                let share = 100.0 * *split as f64 / (*total).max(1) as f64;
+            .map(|(name, per_mode)| {
+                let [split, total] = per_mode[&mode.to_string()];
+                let share = 100.0 * split as f64 / total.max(1) as f64;
                 format!("{name} {split} of {total} ({share:.1}%)")
             })
             .collect();
         println!(
-            "packets split by direction signs (traced as one group per sign octant): {}",
+            "{mode}: packets split by direction signs (traced as one group per sign octant): {}",
             shares.join(", ")
         );
     }
     println!(
-        "{:<8} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
-        "set", "mode", "threads", "rays", "Mrays/s", "min", "max"
+        "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
+        "set", "mode", "width", "packet", "threads", "rays", "Mrays/s", "min", "max"
     );
 
     let pools = threads
@@ -340,6 +409,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut rows = Vec::new();
     let mut disagreements = Vec::new();
+    let mut tile_notes = Vec::new();
+    let mut work_notes = Vec::new();
     let load_before = load_average();
     for name in &args.sets {
         let set = set_named(&sets, name);
@@ -349,8 +420,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let mut first: Option<Checksum> = None;
         for (t, pool) in &pools {
-            for &mode in &args.modes {
+            for &mode in &args.modes.0 {
+                let tiles_before = pool_tile_counts(pool);
+                let work_before = pool_traversal_counts(pool);
                 let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
+                if stats::ENABLED {
+                    let w = pool_traversal_counts(pool).since(work_before);
+                    // One warm-up pass and `repeat` timed ones.
+                    let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
+                    work_notes.push(format!(
+                        "{name} {mode:<8} {t} threads: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
+                        w.node_steps as f64 / rays,
+                        w.leaf_visits as f64 / rays,
+                        w.prim_tests as f64 / rays
+                    ));
+                }
+                if mode == Mode::Tile64 {
+                    let (now, was) = (pool_tile_counts(pool), tiles_before);
+                    let tiles = (now.tiles - was.tiles).max(1) as f64;
+                    tile_notes.push(format!(
+                        "{name} {t} threads: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
+                        100.0 * (now.fallbacks - was.fallbacks) as f64 / tiles,
+                        (now.entry_depth - was.entry_depth) as f64 / tiles
+                    ));
+                }
                 let agrees = *first.get_or_insert(checksum) == checksum;
                 if !agrees {
                     disagreements.push(format!("{name} {mode} {t} threads"));
@@ -361,9 +454,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
                 let med = median(&mut rates);
                 println!(
-                    "{:<8} {:<7} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
+                    "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
                     name,
                     mode,
+                    mode.width(),
+                    mode.packet_size(),
                     t,
                     set.len(),
                     med,
@@ -375,6 +470,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rows.push(Row {
                     set: name.clone(),
                     mode: mode.to_string(),
+                    width: mode.width(),
+                    packet_size: mode.packet_size(),
                     threads: *t,
                     rays: set.len(),
                     mrays_median: med,
@@ -386,6 +483,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let load_after = load_average();
+    for note in &tile_notes {
+        println!("tile64, {note}");
+    }
+    if stats::ENABLED {
+        println!("traversal work (a packet step counts once, whatever its active lanes):");
+    }
+    for note in &work_notes {
+        println!("  {note}");
+    }
     println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
     let busiest = threads.iter().copied().max().unwrap_or(1);
     if machine_was_busy(load_after, busiest, machine.cores) {
@@ -413,7 +519,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             height: sets.primary.height,
             light: sets.light.to_array(),
             light_source: sets.light_source.describe().to_string(),
-            split_packets: split_packets.into_iter().collect(),
+            split_packets,
             load_average: [load_before, load_after],
             results: rows,
         };

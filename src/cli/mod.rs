@@ -29,7 +29,7 @@ mod tests {
 #[command(
     name = "raypack",
     version,
-    about = "A packet ray tracer: SAH kd-tree, 4-ray SIMD packets"
+    about = "A packet ray tracer: SAH kd-tree, SIMD packets of 4, 8 or 16 rays"
 )]
 pub struct Cli {
     #[command(subcommand)]

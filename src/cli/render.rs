@@ -52,10 +52,11 @@ pub struct Args {
     /// Seed of the area-light and glossy samples (default: the scene's).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Trace camera quads and area-light shadow rays as 4-ray packets, or one ray at a
-    /// time; both give the same image.
-    #[arg(long, value_enum, default_value_t = ModeArg::Packet)]
-    pub mode: ModeArg,
+    /// Trace camera blocks and shadow rays as packets of 4, 8 or 16 rays (packet4,
+    /// packet8, packet16; packet: the widest this CPU runs natively), or one ray at a
+    /// time (scalar); every mode gives the same image.
+    #[arg(long, default_value = "packet")]
+    pub mode: Mode,
     #[command(flatten)]
     pub camera: CameraArgs,
     /// PNG only: scale the linear image by 2^EV before the clamp to [0, 1] and the sRGB
@@ -123,22 +124,6 @@ impl CameraArgs {
             )));
         }
         Ok(())
-    }
-}
-
-/// `--mode`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ModeArg {
-    Scalar,
-    Packet,
-}
-
-impl From<ModeArg> for Mode {
-    fn from(m: ModeArg) -> Mode {
-        match m {
-            ModeArg::Scalar => Mode::Scalar,
-            ModeArg::Packet => Mode::Packet,
-        }
     }
 }
 
@@ -289,7 +274,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .progress_chars("=> "),
     );
     let start = Instant::now();
-    let rendered = pool.install(|| render(&scene, &accel, args.mode.into(), &|| bar.inc(1)));
+    let rendered = pool.install(|| render(&scene, &accel, args.mode, &|| bar.inc(1)));
     let render_seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
@@ -312,10 +297,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             width: scene.settings.width,
             height: scene.settings.height,
             threads,
-            mode: match args.mode {
-                ModeArg::Scalar => "scalar",
-                ModeArg::Packet => "packet",
-            },
+            mode: args.mode.name(),
             primitives: scene.geometry.prim_count(),
             build_seconds,
             render_seconds,

@@ -15,8 +15,9 @@ pub struct Args {
     /// The hits file to write (closest hits, whatever the set).
     #[arg(short, long, value_name = "OUT", alias = "out")]
     pub output: PathBuf,
-    /// scalar: one ray at a time; packet: 4 consecutive rays per packet (the default,
-    /// as in `render`); both write the same hits.
+    /// scalar: one ray at a time; packet4, packet8, packet16: 4, 8 or 16 consecutive
+    /// rays per packet (packet, the default as in `render`: the widest this CPU runs);
+    /// tile64: 64 rays per tile. Every mode writes the same hits.
     #[arg(long, default_value = "packet")]
     pub mode: Mode,
 }

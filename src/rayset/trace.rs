@@ -1,57 +1,26 @@
 //! Tracing a ray set through an [`Accel`]: scalar mode calls `intersect`/`occluded` per
-//! ray, packet mode calls `intersect_packet`/`occluded_packet` on every [`LANES`]
-//! consecutive rays (a 2x2 quad of an image set in packet order; lanes past the end of
-//! the set are inactive).
+//! ray, the packet modes call `intersect_packet`/`occluded_packet` on every 4, 8 or 16
+//! consecutive rays (in an image set in RAYS.md's packet order, a 2x2 quad, a 4x2 block
+//! or two 4x2 blocks side by side; lanes past the end of the set are inactive), and
+//! tile mode calls `intersect_tile`/`occluded_tile` on every 64 (a 16x4 block).
 //!
 //! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a
 //! chunk to packets, traces them and folds every answer into a [`Checksum`] (hit count
 //! and sum of primitive ids, as the Embree harness folds its answers), so the work
 //! cannot be optimised away and two modes or two tracers can be compared.
 
-use crate::accel::{Accel, RayPacket};
+pub use crate::accel::Mode;
+use crate::accel::kdtree::traverse_tile::TILE_RAYS;
+use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket};
 use crate::ray::{Hit, Ray};
-use crate::simd::LANES;
+use crate::simd::{MAX_LANES, Uint, W4, W8, W16};
 use rayon::prelude::*;
 use std::fmt;
-use std::str::FromStr;
 
 /// Rays per unit of work handed to a thread (the harness's chunk size).
 pub const CHUNK: usize = 4096;
 
-const _: () = assert!(CHUNK.is_multiple_of(LANES));
-
-/// Which intersector entry points trace the rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Mode {
-    Scalar,
-    Packet,
-}
-
-impl Mode {
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Scalar => "scalar",
-            Mode::Packet => "packet",
-        }
-    }
-}
-
-impl fmt::Display for Mode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Mode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Mode, String> {
-        match s {
-            "scalar" => Ok(Mode::Scalar),
-            "packet" => Ok(Mode::Packet),
-            _ => Err(format!("unknown mode `{s}` (expected scalar or packet)")),
-        }
-    }
-}
+const _: () = assert!(CHUNK.is_multiple_of(MAX_LANES) && CHUNK.is_multiple_of(TILE_RAYS));
 
 /// Closest hit or any hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -109,13 +78,22 @@ pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, ou
                 *h = accel.intersect(r).unwrap_or(Hit::MISS);
             }
         }
-        Mode::Packet => {
-            for (quad, hq) in rays.chunks(LANES).zip(out.chunks_mut(LANES)) {
-                let hp = accel.intersect_packet(&RayPacket::from_rays(quad));
-                for (i, h) in hq.iter_mut().enumerate() {
-                    *h = hp.lane(i);
-                }
+        Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, out),
+        Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, out),
+        Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, out),
+        Mode::Tile64 => {
+            for (tile, ht) in rays.chunks(TILE_RAYS).zip(out.chunks_mut(TILE_RAYS)) {
+                accel.intersect_tile(tile, ht);
             }
+        }
+    }
+}
+
+fn intersect_packets<A: Accel + ?Sized, W: PacketWidth>(accel: &A, rays: &[Ray], out: &mut [Hit]) {
+    for (group, hg) in rays.chunks(W::LANES).zip(out.chunks_mut(W::LANES)) {
+        let hp = accel.intersect_packet(&RayPacket::<W>::from_rays(group));
+        for (i, h) in hg.iter_mut().enumerate() {
+            *h = hp.lane(i);
         }
     }
 }
@@ -148,18 +126,48 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
         (Mode::Scalar, Query::Occluded) => {
             c.hits = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
         }
-        (Mode::Packet, Query::Closest) => {
-            for quad in rays.chunks(LANES) {
-                let hp = accel.intersect_packet(&RayPacket::from_rays(quad));
-                for &prim in &hp.prim.as_array()[..quad.len()] {
-                    c.add_prim(prim);
+        (Mode::Packet4, _) => return checksum_packets::<A, W4>(accel, rays, query),
+        (Mode::Packet8, _) => return checksum_packets::<A, W8>(accel, rays, query),
+        (Mode::Packet16, _) => return checksum_packets::<A, W16>(accel, rays, query),
+        (Mode::Tile64, Query::Closest) => {
+            let mut hits = [Hit::MISS; TILE_RAYS];
+            for tile in rays.chunks(TILE_RAYS) {
+                accel.intersect_tile(tile, &mut hits[..tile.len()]);
+                for h in &hits[..tile.len()] {
+                    c.add_prim(h.prim);
                 }
             }
         }
-        (Mode::Packet, Query::Occluded) => {
-            for quad in rays.chunks(LANES) {
-                let bits = accel.occluded_packet(&RayPacket::from_rays(quad));
-                c.hits += (bits & ((1u32 << quad.len()) - 1)).count_ones() as u64;
+        (Mode::Tile64, Query::Occluded) => {
+            for tile in rays.chunks(TILE_RAYS) {
+                c.hits += accel.occluded_tile(tile).count_ones() as u64;
+            }
+        }
+    }
+    c
+}
+
+/// [`checksum_chunk`] of the packet modes: `W::LANES` consecutive rays per packet.
+#[inline]
+fn checksum_packets<A: Accel + ?Sized, W: PacketWidth>(
+    accel: &A,
+    rays: &[Ray],
+    query: Query,
+) -> Checksum {
+    let mut c = Checksum::default();
+    match query {
+        Query::Closest => {
+            for group in rays.chunks(W::LANES) {
+                let hp = accel.intersect_packet(&RayPacket::<W>::from_rays(group));
+                for i in 0..group.len() {
+                    c.add_prim(hp.prim.lane(i));
+                }
+            }
+        }
+        Query::Occluded => {
+            for group in rays.chunks(W::LANES) {
+                let bits = accel.occluded_packet(&RayPacket::<W>::from_rays(group));
+                c.hits += (bits & crate::accel::packet::low_bits(group.len())).count_ones() as u64;
             }
         }
     }
@@ -218,10 +226,12 @@ mod tests {
         let (g, rays) = spheres_and_rays();
         let accel = BruteForce::new(&g);
         let scalar = trace_hits(&accel, &rays, Mode::Scalar);
-        assert_eq!(trace_hits(&accel, &rays, Mode::Packet), scalar);
+        for mode in Mode::ALL {
+            assert_eq!(trace_hits(&accel, &rays, mode), scalar, "{mode}");
+        }
         let c = Checksum::of_hits(&scalar);
         assert!(c.hits > 10 && c.hits < rays.len() as u64, "{c}");
-        for mode in [Mode::Scalar, Mode::Packet] {
+        for mode in Mode::ALL {
             assert_eq!(checksum_set(&accel, &rays, mode, Query::Closest), c);
             let occluded = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
             let o = checksum_set(&accel, &rays, mode, Query::Occluded);
@@ -235,7 +245,14 @@ mod tests {
             // Any hit exists exactly where a closest hit does.
             assert_eq!(occluded, c.hits);
         }
-        assert_eq!("packet".parse::<Mode>(), Ok(Mode::Packet));
+        assert_eq!("packet8".parse::<Mode>(), Ok(Mode::Packet8));
+        assert_eq!("packet".parse::<Mode>(), Ok(Mode::native_packet()));
+        assert_eq!(Mode::parse_list("all"), Ok(Mode::ALL.to_vec()));
+        assert_eq!(
+            Mode::parse_list("scalar,packet16"),
+            Ok(vec![Mode::Scalar, Mode::Packet16])
+        );
         assert!("simd".parse::<Mode>().is_err());
+        assert!(Mode::parse_list("scalar,packet5").is_err());
     }
 }

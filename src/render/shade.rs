@@ -47,10 +47,9 @@
 
 use super::sample::{Pcg32, sample_cone, stratified};
 use super::shade_packet::ShadowBatch;
-use crate::accel::Accel;
+use crate::accel::{Accel, Mode};
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{Light, Material, PrimRef, Scene, Sphere};
-use crate::simd::LANES;
 use glam::{Vec2, Vec3};
 use std::ops::AddAssign;
 
@@ -202,9 +201,10 @@ pub struct Shader<'a> {
     pub accel: &'a dyn Accel,
     /// Offset of secondary ray origins from the surface.
     pub epsilon: f32,
-    /// Test the shadow rays of an area light's samples as packets
-    /// ([`super::shade_packet::ShadowBatch`]); the answers, and so the image, are the same.
-    pub packets: bool,
+    /// Scalar, or the packet width the shadow rays of an area light's samples and the
+    /// glossy rays of a hit are tested at ([`super::shade_packet::ShadowBatch`]); the
+    /// answers, and so the image, are the same.
+    pub mode: Mode,
 }
 
 /// The mutable state of one camera sample's ray tree.
@@ -336,7 +336,7 @@ impl<'a> Shader<'a> {
             scene,
             accel,
             epsilon,
-            packets: false,
+            mode: Mode::Scalar,
         }
     }
 
@@ -475,7 +475,7 @@ impl<'a> Shader<'a> {
                         }
                     }
                 } else {
-                    let mut batch = ShadowBatch::new(self.packets);
+                    let mut batch = ShadowBatch::new(self.mode);
                     for i in 0..count {
                         let target = match light {
                             Light::Point { position, .. } => *position,
@@ -543,7 +543,7 @@ impl<'a> Shader<'a> {
         path.counts.glossy += count as u64;
         let next = at.next(0.25, at.medium);
         let mut sum = Vec3::ZERO;
-        for chunk in rays.chunks(LANES) {
+        for chunk in rays.chunks(super::shade_packet::batch_size(self.mode)) {
             let hits = self.closest_hits(chunk, &mut path.counts.packets.glossy);
             for (r, hit) in chunk.iter().zip(hits) {
                 sum += self.finish(r, hit, next, path).0;

@@ -1,10 +1,14 @@
-//! render: packet shading. Camera quads and supersampling's sub-pixel samples are traced
-//! as 4-ray packets through [`Accel::intersect_packet`] (the kd-tree's SIMD traversal);
+//! render: packet shading. Camera blocks (2x2, 4x2 or 4x4 pixels, the shape of the
+//! width: [`crate::simd::Simd::SHAPE`]) and supersampling's sub-pixel samples are traced
+//! as packets of the mode's width through [`PacketTrace::intersect_packet`] (the
+//! kd-tree's SIMD traversal);
 //! the mirror and refraction rays their lanes spawn are traced as packets again, down
 //! the whole tree (`Shader::finish_packet`); the lanes' shadow rays toward each point
 //! light form a packet (`Shader::point_shadows_packet`); the glossy rays of one hit
-//! point and the shadow rays toward the samples of one area light are traced [`LANES`]
-//! at a time.
+//! point and the shadow rays toward the samples of one area light are traced a packet
+//! width at a time.
+//!
+//! Lane arrays are [`MAX_LANES`] long at every width; only the first `W::LANES` are used.
 //!
 //! Invariant: a pixel is bit-identical to the scalar path's. The packet traversal
 //! returns the scalar closest hit and any-hit answer bit for bit
@@ -26,11 +30,11 @@ use super::shade::{
     Surface, shadow_origin, shadow_ray,
 };
 use super::tiles::sub_pixel_sample;
-use crate::accel::Accel;
 use crate::accel::packet::{HitPacket, RayPacket};
+use crate::accel::{Accel, Mode, PacketTrace, PacketWidth};
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{CameraFrame, Light};
-use crate::simd::LANES;
+use crate::simd::{MAX_LANES, W4, W8, W16};
 use glam::Vec3;
 
 #[cfg(doc)]
@@ -42,26 +46,30 @@ type SpawnStep<'a> = fn(&Shader<'a>, &Ray, &Lit, Bounce, &mut RayCounts) -> Opti
 /// Fewest mirror or refraction rays traced as a packet; fewer go alone.
 pub const MIN_PACKET_LANES: usize = 2;
 
-/// The packet twin of [`super::tiles::centre_sample`] for up to [`LANES`] pixels: their
+/// The packet twin of [`super::tiles::centre_sample`] for up to `W::LANES` pixels: their
 /// centre rays traced as one packet, each lane shaded as the scalar path shades it.
-pub fn shade_quad_packet(
+pub fn shade_block_packet<W: PacketWidth>(
     shader: &Shader,
     frame: &CameraFrame,
     seed: u64,
-    pixels: [Option<(u32, u32)>; LANES],
+    pixels: [Option<(u32, u32)>; MAX_LANES],
     counts: &mut RayCounts,
-) -> [(Vec3, HitSignature); LANES] {
+) -> [(Vec3, HitSignature); MAX_LANES] {
+    assert!(
+        pixels[W::LANES..].iter().all(Option::is_none),
+        "more pixels than lanes"
+    );
     let rays = pixels.map(|p| p.map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5)));
     let mut rngs = pixels.map(|p| match p {
         Some((x, y)) => pixel_rng(seed, x, y, 0),
         None => Pcg32::new(0, 0),
     });
-    shader.trace_primary_packet(&rays, &mut rngs, counts)
+    shader.trace_primary_packet::<W>(&rays, &mut rngs, counts)
 }
 
 /// The packet twin of [`super::tiles::supersample`]: the `n x n` samples, each with its
-/// own generator, traced [`LANES`] at a time and summed in the scalar order.
-pub fn supersample_packet(
+/// own generator, traced `W::LANES` at a time and summed in the scalar order.
+pub fn supersample_packet<W: PacketWidth>(
     shader: &Shader,
     frame: &CameraFrame,
     seed: u64,
@@ -73,15 +81,15 @@ pub fn supersample_packet(
     let n = n.max(1);
     let total = n * n;
     let mut sum = Vec3::ZERO;
-    for start in (0..total).step_by(LANES) {
-        let mut rngs: [Pcg32; LANES] = std::array::from_fn(|_| Pcg32::new(0, 0));
-        let mut rays = [None; LANES];
-        for (lane, k) in (start..total.min(start + LANES as u32)).enumerate() {
+    for start in (0..total).step_by(W::LANES) {
+        let mut rngs: [Pcg32; MAX_LANES] = std::array::from_fn(|_| Pcg32::new(0, 0));
+        let mut rays = [None; MAX_LANES];
+        for (lane, k) in (start..total.min(start + W::LANES as u32)).enumerate() {
             let (ray, rng) = sub_pixel_sample(frame, seed, (x, y), n, first, k);
             rays[lane] = Some(ray);
             rngs[lane] = rng;
         }
-        let shaded = shader.trace_primary_packet(&rays, &mut rngs, counts);
+        let shaded = shader.trace_primary_packet::<W>(&rays, &mut rngs, counts);
         for (ray, (colour, _)) in rays.iter().zip(shaded) {
             if ray.is_some() {
                 sum += colour;
@@ -92,41 +100,43 @@ pub fn supersample_packet(
 }
 
 impl<'a> Shader<'a> {
-    /// Camera rays of up to [`LANES`] samples, lane `i` drawing from `rngs[i]`, traced
+    /// Camera rays of up to `W::LANES` samples, lane `i` drawing from `rngs[i]`, traced
     /// as one packet: lane by lane the colour and signature of [`Shader::trace_primary`].
-    pub fn trace_primary_packet(
+    pub fn trace_primary_packet<W: PacketWidth>(
         &self,
-        rays: &[Option<Ray>; LANES],
-        rngs: &mut [Pcg32; LANES],
+        rays: &[Option<Ray>; MAX_LANES],
+        rngs: &mut [Pcg32; MAX_LANES],
         counts: &mut RayCounts,
-    ) -> [(Vec3, HitSignature); LANES] {
+    ) -> [(Vec3, HitSignature); MAX_LANES] {
         let lanes = rays.iter().flatten().count();
         counts.primary += lanes as u64;
         counts.packets.primary.packet(lanes);
-        let hits = self.accel.intersect_packet(&RayPacket::from_lanes(rays));
-        self.finish_packet(rays, &[Bounce::CAMERA; LANES], &hits, rngs, counts)
+        let hits = self
+            .accel
+            .intersect_packet(&RayPacket::<W>::from_lanes(&rays[..W::LANES]));
+        self.finish_packet::<W>(rays, &[Bounce::CAMERA; MAX_LANES], &hits, rngs, counts)
     }
 
     /// The packet twin of [`Shader::finish`]: shades each lane's closest hit with the
     /// scalar steps in the scalar order, except that the lanes' mirror rays, then their
     /// refraction rays, are traced together ([`Shader::trace_spawns`]).
-    pub(super) fn finish_packet(
+    pub(super) fn finish_packet<W: PacketWidth>(
         &self,
-        rays: &[Option<Ray>; LANES],
-        at: &[Bounce; LANES],
-        hits: &HitPacket,
-        rngs: &mut [Pcg32; LANES],
+        rays: &[Option<Ray>; MAX_LANES],
+        at: &[Bounce; MAX_LANES],
+        hits: &HitPacket<W>,
+        rngs: &mut [Pcg32; MAX_LANES],
         counts: &mut RayCounts,
-    ) -> [(Vec3, HitSignature); LANES] {
-        let mut out = [(Vec3::ZERO, HitSignature::MISS); LANES];
-        let mut lit: [Option<(Hit, Lit<'a>)>; LANES] = Default::default();
-        let mut surfaces: [Option<Surface<'a>>; LANES] = std::array::from_fn(|i| {
+    ) -> [(Vec3, HitSignature); MAX_LANES] {
+        let mut out = [(Vec3::ZERO, HitSignature::MISS); MAX_LANES];
+        let mut lit: [Option<(Hit, Lit<'a>)>; MAX_LANES] = Default::default();
+        let mut surfaces: [Option<Surface<'a>>; MAX_LANES] = std::array::from_fn(|i| {
+            let ray = rays[i].as_ref()?;
             let hit = hits.lane(i);
-            let ray = rays[i].as_ref().filter(|_| hit.is_hit())?;
-            Some(self.surface(ray, &hit))
+            hit.is_hit().then(|| self.surface(ray, &hit))
         });
-        let point_occluded = self.point_shadows_packet(rays, &surfaces, counts);
-        for (i, rng) in rngs.iter_mut().enumerate() {
+        let point_occluded = self.point_shadows_packet::<W>(rays, &surfaces, counts);
+        for (i, rng) in rngs.iter_mut().enumerate().take(W::LANES) {
             let Some(ray) = &rays[i] else { continue };
             let hit = hits.lane(i);
             let Some(s) = surfaces[i].take() else {
@@ -140,8 +150,8 @@ impl<'a> Shader<'a> {
             }
             lit[i] = Some((hit, l));
         }
-        let mut secondary = [NO_HIT; LANES];
-        let spawning = (0..LANES).any(|i| {
+        let mut secondary = [NO_HIT; MAX_LANES];
+        let spawning = (0..W::LANES).any(|i| {
             lit[i]
                 .as_ref()
                 .is_some_and(|(_, l)| l.may_spawn(at[i], self))
@@ -152,8 +162,8 @@ impl<'a> Shader<'a> {
                 (Some(ray), Some((_, l))) => spawn(self, ray, l, at[i], counts),
                 _ => None,
             });
-            let seen = self.trace_spawns(&spawns, rngs, counts);
-            for i in 0..LANES {
+            let seen = self.trace_spawns::<W>(&spawns, rngs, counts);
+            for i in 0..W::LANES {
                 if let (Some(sp), Some((_, l))) = (&spawns[i], &mut lit[i]) {
                     l.colour += sp.weight * seen[i].0;
                     if secondary[i] == NO_HIT {
@@ -162,7 +172,7 @@ impl<'a> Shader<'a> {
                 }
             }
         }
-        for i in 0..LANES {
+        for i in 0..W::LANES {
             if let Some((hit, l)) = &lit[i] {
                 let colour = l.colour * super::shade::transmission(at[i].medium, hit.t);
                 out[i] = (colour, l.signature(hit, secondary[i]));
@@ -178,14 +188,14 @@ impl<'a> Shader<'a> {
     /// when lane `i`'s ray toward light `k` is occluded. The rays are [`shadow_ray`]'s, as
     /// in the scalar path, and point lights draw no random numbers, so shading with these
     /// answers ([`Shader::direct_on`]) gives the scalar pixels.
-    fn point_shadows_packet(
+    fn point_shadows_packet<W: PacketWidth>(
         &self,
-        rays: &[Option<Ray>; LANES],
-        surfaces: &[Option<Surface<'a>>; LANES],
+        rays: &[Option<Ray>; MAX_LANES],
+        surfaces: &[Option<Surface<'a>>; MAX_LANES],
         counts: &mut RayCounts,
-    ) -> [u64; LANES] {
-        let mut occluded = [0u64; LANES];
-        let origins: [Option<Vec3>; LANES] = std::array::from_fn(|i| {
+    ) -> [u64; MAX_LANES] {
+        let mut occluded = [0u64; MAX_LANES];
+        let origins: [Option<Vec3>; MAX_LANES] = std::array::from_fn(|i| {
             let s = surfaces[i].as_ref()?;
             shadow_origin(s, self.offset(rays[i].as_ref()?.org, s.p))
         });
@@ -197,7 +207,7 @@ impl<'a> Shader<'a> {
             let Light::Point { position, .. } = light else {
                 continue;
             };
-            let shadows: [Option<Ray>; LANES] = std::array::from_fn(|i| {
+            let shadows: [Option<Ray>; MAX_LANES] = std::array::from_fn(|i| {
                 let ns = surfaces[i].as_ref()?.ns;
                 shadow_ray(origins[i]?, ns, *position).map(|(ray, _)| ray)
             });
@@ -212,7 +222,8 @@ impl<'a> Shader<'a> {
                 }
                 lanes => {
                     counts.packets.shadow.packet(lanes);
-                    self.accel.occluded_packet(&RayPacket::from_lanes(&shadows))
+                    self.accel
+                        .occluded_packet(&RayPacket::<W>::from_lanes(&shadows[..W::LANES]))
                 }
             };
             for (i, lane) in occluded.iter_mut().enumerate() {
@@ -226,49 +237,51 @@ impl<'a> Shader<'a> {
     /// with [`Shader::finish_packet`]: as one packet when at least [`MIN_PACKET_LANES`]
     /// lanes have one, else each alone through the scalar [`Accel::intersect`]. Either
     /// way their own spawned rays may form packets again.
-    fn trace_spawns(
+    fn trace_spawns<W: PacketWidth>(
         &self,
-        spawns: &[Option<Spawn>; LANES],
-        rngs: &mut [Pcg32; LANES],
+        spawns: &[Option<Spawn>; MAX_LANES],
+        rngs: &mut [Pcg32; MAX_LANES],
         counts: &mut RayCounts,
-    ) -> [(Vec3, HitSignature); LANES] {
+    ) -> [(Vec3, HitSignature); MAX_LANES] {
         let rays = spawns.map(|s| s.map(|s| s.ray));
         let lanes = rays.iter().flatten().count();
         if lanes == 0 {
-            return [(Vec3::ZERO, HitSignature::MISS); LANES];
+            return [(Vec3::ZERO, HitSignature::MISS); MAX_LANES];
         }
         let hits = if lanes >= MIN_PACKET_LANES {
             counts.packets.secondary.packet(lanes);
-            self.accel.intersect_packet(&RayPacket::from_lanes(&rays))
+            self.accel
+                .intersect_packet(&RayPacket::<W>::from_lanes(&rays[..W::LANES]))
         } else {
             counts.packets.secondary.single_rays += lanes as u64;
-            HitPacket::from_lanes(|i| {
+            HitPacket::<W>::from_lanes(|i| {
                 rays[i]
                     .and_then(|r| self.accel.intersect(&r))
                     .unwrap_or(Hit::MISS)
             })
         };
         let at = spawns.map(|s| s.map_or(Bounce::CAMERA, |s| s.at));
-        self.finish_packet(&rays, &at, &hits, rngs, counts)
+        self.finish_packet::<W>(&rays, &at, &hits, rngs, counts)
     }
 
-    /// The closest hits of up to [`LANES`] rays of one hit point, in order: one packet
-    /// when the shader traces packets and there are two rays or more, else one by one.
+    /// The closest hits of up to one packet width of rays of one hit point, in order: one
+    /// packet when the shader traces packets and there are two rays or more, else one by
+    /// one.
     pub(super) fn closest_hits(
         &self,
         rays: &[Ray],
         batching: &mut Batching,
-    ) -> [Option<Hit>; LANES] {
-        let mut hits = [None; LANES];
-        if self.packets && rays.len() > 1 {
+    ) -> [Option<Hit>; MAX_LANES] {
+        let mut hits = [None; MAX_LANES];
+        let packets = self.mode != Mode::Scalar;
+        if packets && rays.len() > 1 {
             batching.packet(rays.len());
-            let packet = self.accel.intersect_packet(&RayPacket::from_rays(rays));
-            for (i, h) in hits.iter_mut().enumerate().take(rays.len()) {
-                let hit = packet.lane(i);
+            let packet = intersect_rays(self.accel, self.mode, rays);
+            for (h, hit) in hits.iter_mut().zip(packet).take(rays.len()) {
                 *h = hit.is_hit().then_some(hit);
             }
         } else {
-            if self.packets {
+            if packets {
                 batching.single_rays += rays.len() as u64;
             }
             for (h, ray) in hits.iter_mut().zip(rays) {
@@ -279,27 +292,50 @@ impl<'a> Shader<'a> {
     }
 }
 
-/// Shadow rays of one hit point, queued in sample order and tested [`LANES`] at a time:
-/// as one packet when `packets` is set, one by one otherwise. Each unoccluded ray is
+/// Closest hits of at most one packet of `rays`, traced as a packet at `mode`'s width.
+fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_LANES] {
+    fn at<W: PacketWidth>(accel: &dyn Accel, rays: &[Ray]) -> [Hit; MAX_LANES] {
+        let p = accel.intersect_packet(&RayPacket::<W>::from_rays(rays));
+        std::array::from_fn(|i| if i < W::LANES { p.lane(i) } else { Hit::MISS })
+    }
+    match mode {
+        Mode::Packet8 => at::<W8>(accel, rays),
+        Mode::Packet16 => at::<W16>(accel, rays),
+        _ => at::<W4>(accel, rays),
+    }
+}
+
+/// Occlusion bits of at most one packet of `rays`, traced as a packet at `mode`'s width.
+fn occluded_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> u32 {
+    match mode {
+        Mode::Packet8 => accel.occluded_packet(&RayPacket::<W8>::from_rays(rays)),
+        Mode::Packet16 => accel.occluded_packet(&RayPacket::<W16>::from_rays(rays)),
+        _ => accel.occluded_packet(&RayPacket::<W4>::from_rays(rays)),
+    }
+}
+
+/// Shadow rays of one hit point, queued in sample order and tested a packet width at a
+/// time: as one packet in a packet mode, one by one in scalar mode. Each unoccluded ray is
 /// handed back, in queue order, with the value queued beside it.
 pub struct ShadowBatch {
-    rays: [Ray; LANES],
-    values: [f32; LANES],
+    rays: [Ray; MAX_LANES],
+    values: [f32; MAX_LANES],
     len: usize,
-    packets: bool,
+    mode: Mode,
 }
 
 impl ShadowBatch {
-    pub fn new(packets: bool) -> ShadowBatch {
+    pub fn new(mode: Mode) -> ShadowBatch {
         ShadowBatch {
-            rays: [Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0); LANES],
-            values: [0.0; LANES],
+            rays: [Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0); MAX_LANES],
+            values: [0.0; MAX_LANES],
             len: 0,
-            packets,
+            mode,
         }
     }
 
-    /// Queues `ray`; once [`LANES`] rays are queued, tests them (see [`Self::flush`]).
+    /// Queues `ray`; once a packet width of rays is queued (4 in scalar mode), tests them
+    /// (see [`Self::flush`]).
     #[inline]
     pub fn push(
         &mut self,
@@ -312,7 +348,7 @@ impl ShadowBatch {
         self.rays[self.len] = ray;
         self.values[self.len] = value;
         self.len += 1;
-        if self.len == LANES {
+        if self.len == batch_size(self.mode) {
             self.flush(accel, lit, counts);
         }
     }
@@ -326,11 +362,12 @@ impl ShadowBatch {
         counts: &mut RayCounts,
     ) {
         let queued = &self.rays[..self.len];
-        let occluded = if self.packets && queued.len() > 1 {
+        let packets = self.mode != Mode::Scalar;
+        let occluded = if packets && queued.len() > 1 {
             counts.packets.shadow.packet(queued.len());
-            accel.occluded_packet(&RayPacket::from_rays(queued))
+            occluded_rays(accel, self.mode, queued)
         } else {
-            if self.packets {
+            if packets {
                 counts.packets.shadow.single_rays += queued.len() as u64;
             }
             (0..queued.len()).fold(0, |m, i| m | ((accel.occluded(&queued[i]) as u32) << i))
@@ -342,4 +379,10 @@ impl ShadowBatch {
         }
         self.len = 0;
     }
+}
+
+/// Rays of one hit point batched together in `mode` (glossy rays, area-light shadow
+/// rays): the packet width, and 4 in scalar mode, whose batches only order the work.
+pub fn batch_size(mode: Mode) -> usize {
+    mode.packet_size().max(4)
 }

@@ -6,37 +6,28 @@
 //! own generator ([`pixel_rng`]), and adaptive anti-aliasing recomputes the signatures of
 //! the pixels left of and above a tile instead of waiting for its neighbours.
 //!
-//! Camera rays are issued as 2x2 pixel quads, lanes in the order of RAYS.md ((x,y),
-//! (x+1,y), (x,y+1), (x+1,y+1)), through [`shade_quad`], and a supersampled pixel's
-//! samples through [`supersample`]. Those are the seams where the packet path plugs in:
-//! a [`Mode`] selects how they are traced and shaded; everything else here (tiling,
-//! adaptive refinement, counting) is shared.
+//! Camera rays are issued as pixel blocks of the mode's packet shape (2x2 in scalar and
+//! 4-lane mode, 4x2 at 8 lanes, 4x4 at 16: [`crate::simd::Simd::SHAPE`], lanes in the
+//! order of [`crate::simd::block_pixel`]) through [`shade_block`], and a supersampled
+//! pixel's samples through [`supersample`]. Those are the seams where the packet path
+//! plugs in: a [`Mode`] selects how they are traced and shaded; everything else here
+//! (tiling, adaptive refinement, counting) is shared.
 
 use super::film::Film;
 use super::sample::{Pcg32, pixel_rng};
 use super::shade::{HitSignature, RayCounts, Shader};
-use super::shade_packet::{shade_quad_packet, supersample_packet};
+use super::shade_packet::{shade_block_packet, supersample_packet};
 use crate::accel::Accel;
+pub use crate::accel::Mode;
 use crate::ray::Ray;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
-use crate::simd::LANES;
+use crate::simd::{MAX_LANES, Simd, W4, W8, W16, block_pixel};
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Tile side in pixels: 32x32 pixels are 256 quads, enough work per task for rayon.
+/// Tile side in pixels: 32x32 pixels are 256 quads, enough work per task for rayon, and
+/// a multiple of every packet shape.
 pub const TILE: u32 = 32;
-
-/// How camera quads are traced and shaded.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Mode {
-    /// One ray at a time through [`Shader`]: the reference.
-    #[default]
-    Scalar,
-    /// Camera quads and sub-pixel samples as 4-ray packets, their mirror and refraction
-    /// rays in packets where the lanes agree, glossy and shadow rays of one hit point in
-    /// packets ([`super::shade_packet`]); the same image as `Scalar`, bit for bit.
-    Packet,
-}
 
 /// A rectangle of pixels; edge tiles may be smaller than [`TILE`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,10 +69,12 @@ pub fn render(
     mode: Mode,
     progress: &(dyn Fn() + Sync),
 ) -> Rendered {
+    // Ray tiles are a bench mode for now: the renderer traces their groups as packets.
+    let mode = mode.group_mode();
     let (width, height) = (scene.settings.width, scene.settings.height);
     let ctx = TileContext {
         shader: Shader {
-            packets: mode == Mode::Packet,
+            mode,
             ..Shader::new(scene, accel)
         },
         frame: scene.camera.frame(width, height),
@@ -109,23 +102,41 @@ pub fn render(
     Rendered { film, counts }
 }
 
-/// Traces and shades up to [`LANES`] camera samples through pixel centres: usually a
-/// 2x2 quad, `None` where a lane falls outside the tile. Lane `i`'s result belongs to
-/// `pixels[i]`; unused lanes return black with [`HitSignature::MISS`].
-pub fn shade_quad(
+/// Pixel offsets, in lane order, of the camera block `mode` traces at once: its
+/// packet's shape, 2x2 in scalar mode.
+pub fn block_offsets(mode: Mode) -> Vec<(u32, u32)> {
+    fn of<W: Simd>() -> Vec<(u32, u32)> {
+        (0..W::LANES).map(block_pixel::<W>).collect()
+    }
+    match mode {
+        Mode::Scalar | Mode::Packet4 => of::<W4>(),
+        Mode::Packet8 => of::<W8>(),
+        Mode::Packet16 => of::<W16>(),
+        Mode::Tile64 => block_offsets(mode.group_mode()),
+    }
+}
+
+/// Traces and shades up to one packet of camera samples through pixel centres: usually
+/// a block of the mode's shape ([`block_offsets`]), `None` where a lane falls outside
+/// the tile. Lane `i`'s result belongs to `pixels[i]`; unused lanes return black with
+/// [`HitSignature::MISS`].
+pub fn shade_block(
     mode: Mode,
     shader: &Shader,
     frame: &CameraFrame,
     seed: u64,
-    pixels: [Option<(u32, u32)>; LANES],
+    pixels: [Option<(u32, u32)>; MAX_LANES],
     counts: &mut RayCounts,
-) -> [(Vec3, HitSignature); LANES] {
+) -> [(Vec3, HitSignature); MAX_LANES] {
     match mode {
         Mode::Scalar => pixels.map(|p| match p {
             Some((x, y)) => centre_sample(shader, frame, seed, x, y, counts),
             None => (Vec3::ZERO, HitSignature::MISS),
         }),
-        Mode::Packet => shade_quad_packet(shader, frame, seed, pixels, counts),
+        Mode::Packet4 => shade_block_packet::<W4>(shader, frame, seed, pixels, counts),
+        Mode::Packet8 => shade_block_packet::<W8>(shader, frame, seed, pixels, counts),
+        Mode::Packet16 => shade_block_packet::<W16>(shader, frame, seed, pixels, counts),
+        Mode::Tile64 => shade_block(mode.group_mode(), shader, frame, seed, pixels, counts),
     }
 }
 
@@ -209,24 +220,33 @@ impl TileContext<'_> {
     /// [`supersample`], or its packet twin in packet mode.
     fn supersample(&self, p: (u32, u32), n: u32, first: u32, counts: &mut RayCounts) -> Vec3 {
         let (shader, frame, seed) = (&self.shader, &self.frame, self.seed);
-        match self.mode {
+        match self.mode.group_mode() {
             Mode::Scalar => supersample(shader, frame, seed, p, n, first, counts),
-            Mode::Packet => supersample_packet(shader, frame, seed, p, n, first, counts),
+            Mode::Packet4 => supersample_packet::<W4>(shader, frame, seed, p, n, first, counts),
+            Mode::Packet8 => supersample_packet::<W8>(shader, frame, seed, p, n, first, counts),
+            Mode::Packet16 | Mode::Tile64 => {
+                supersample_packet::<W16>(shader, frame, seed, p, n, first, counts)
+            }
         }
     }
 
-    /// One centre sample per pixel of the tile, issued as 2x2 quads; row-major results.
+    /// One centre sample per pixel of the tile, issued as blocks of the mode's packet
+    /// shape; row-major results.
     fn centre_pass(&self, tile: &Tile, counts: &mut RayCounts) -> Vec<(Vec3, HitSignature)> {
         let w = tile.width as usize;
         let mut out = vec![(Vec3::ZERO, HitSignature::MISS); w * tile.height as usize];
-        for qy in (0..tile.height).step_by(2) {
-            for qx in (0..tile.width).step_by(2) {
-                let lanes: [(u32, u32); LANES] = [(0, 0), (1, 0), (0, 1), (1, 1)];
-                let pixels = lanes.map(|(dx, dy)| {
+        let offsets = block_offsets(self.mode);
+        let (bw, bh) = offsets
+            .iter()
+            .fold((0, 0), |(w, h), &(x, y)| (w.max(x + 1), h.max(y + 1)));
+        for qy in (0..tile.height).step_by(bh as usize) {
+            for qx in (0..tile.width).step_by(bw as usize) {
+                let pixels = std::array::from_fn(|i| {
+                    let (dx, dy) = *offsets.get(i)?;
                     let (x, y) = (qx + dx, qy + dy);
                     (x < tile.width && y < tile.height).then_some((tile.x0 + x, tile.y0 + y))
                 });
-                let shaded = shade_quad(
+                let shaded = shade_block(
                     self.mode,
                     &self.shader,
                     &self.frame,
@@ -245,12 +265,12 @@ impl TileContext<'_> {
     }
 
     /// Signatures of the pixels whose centre samples `pixels` lists, in that order,
-    /// traced [`LANES`] at a time through the same seam as the tile's own pixels.
+    /// traced a packet at a time through the same seam as the tile's own pixels.
     fn signatures(&self, pixels: &[(u32, u32)], counts: &mut RayCounts) -> Vec<HitSignature> {
         let mut out = Vec::with_capacity(pixels.len());
-        for chunk in pixels.chunks(LANES) {
+        for chunk in pixels.chunks(self.mode.packet_size().max(4)) {
             let lanes = std::array::from_fn(|i| chunk.get(i).copied());
-            let shaded = shade_quad(
+            let shaded = shade_block(
                 self.mode,
                 &self.shader,
                 &self.frame,

@@ -5,10 +5,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 use raypack::accel::Accel;
 use raypack::accel::packet::RayPacket;
+use raypack::accel::{PacketTrace, PacketWidth};
 use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
-use raypack::simd::LANES;
 
 /// A closed mesh and a sampler of points strictly inside it.
 pub struct ClosedMesh {
@@ -130,16 +130,16 @@ pub fn leaks_scalar(accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
         .collect()
 }
 
-/// Indices of the rays that miss, traced `LANES` at a time as packets (consecutive rays
-/// share a packet; they are incoherent, so this also exercises packet splitting).
-pub fn leaks_packet(accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
-    rays.par_chunks(LANES)
+/// Indices of the rays that miss, traced `W::LANES` at a time as packets (consecutive
+/// rays share a packet; they are incoherent, so this also exercises packet splitting).
+pub fn leaks_packet<W: PacketWidth>(accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
+    rays.par_chunks(W::LANES)
         .enumerate()
         .flat_map_iter(|(c, chunk)| {
-            let hits = accel.intersect_packet(&RayPacket::from_rays(chunk));
+            let hits = accel.intersect_packet(&RayPacket::<W>::from_rays(chunk));
             (0..chunk.len())
                 .filter(move |&i| !hits.lane(i).is_hit())
-                .map(move |i| c * LANES + i)
+                .map(move |i| c * W::LANES + i)
         })
         .collect()
 }

@@ -12,8 +12,10 @@
 
 pub mod build;
 pub mod node;
+pub mod stats;
 pub mod traverse;
 pub mod traverse_packet;
+pub mod traverse_tile;
 
 use super::Prims;
 use crate::scene::Aabb;

@@ -27,10 +27,12 @@
 
 use super::KdTree;
 use super::build::MAX_DEPTH;
-use crate::accel::Accel;
+use super::stats::bump;
 use crate::accel::triaccel::{max_abs, max_gt, min_lt};
+use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
+use crate::simd::{LaneBits, W4, W8, W16};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -72,6 +74,7 @@ impl KdTree {
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
+                bump(|c| c.node_steps += 1);
                 let axis = n.axis() & 3;
                 let children = n.children();
                 let o = axes.org[axis];
@@ -107,17 +110,20 @@ impl KdTree {
                 continue;
             }
             let count = n.leaf_count();
+            bump(|c| c.leaf_visits += 1);
             if count != 0 {
                 let first = n.leaf_first() as usize;
                 let prims = &self.prim_indices[first..first + count as usize];
                 if ANY_HIT {
-                    if prims
-                        .iter()
-                        .any(|&p| self.prims.intersect_prim(p, ray, ray.t_max).is_some())
-                    {
+                    let hit = |&p: &u32| {
+                        bump(|c| c.prim_tests += 1);
+                        self.prims.intersect_prim(p, ray, ray.t_max).is_some()
+                    };
+                    if prims.iter().any(hit) {
                         return true;
                     }
                 } else {
+                    bump(|c| c.prim_tests += count as u64);
                     for &p in prims {
                         let limit = best.t.next_up().min(ray.t_max);
                         if let Some(h) = self.prims.intersect_prim(p, ray, limit)
@@ -264,11 +270,41 @@ impl Accel for KdTree {
         self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
     }
 
-    fn intersect_packet(&self, rays: &crate::accel::RayPacket) -> crate::accel::HitPacket {
+    fn intersect_packet4(&self, rays: &RayPacket<W4>) -> HitPacket<W4> {
         KdTree::intersect_packet(self, rays)
     }
 
-    fn occluded_packet(&self, rays: &crate::accel::RayPacket) -> u32 {
+    fn intersect_packet8(&self, rays: &RayPacket<W8>) -> HitPacket<W8> {
+        KdTree::intersect_packet(self, rays)
+    }
+
+    fn intersect_packet16(&self, rays: &RayPacket<W16>) -> HitPacket<W16> {
+        KdTree::intersect_packet(self, rays)
+    }
+
+    fn occluded_packet4(&self, rays: &RayPacket<W4>) -> LaneBits {
         KdTree::occluded_packet(self, rays)
+    }
+
+    fn occluded_packet8(&self, rays: &RayPacket<W8>) -> LaneBits {
+        KdTree::occluded_packet(self, rays)
+    }
+
+    fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
+        KdTree::occluded_packet(self, rays)
+    }
+
+    fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
+        match crate::accel::tile_lanes() {
+            16 => KdTree::intersect_tile::<W16>(self, rays, out),
+            _ => KdTree::intersect_tile::<W8>(self, rays, out),
+        }
+    }
+
+    fn occluded_tile(&self, rays: &[Ray]) -> u64 {
+        match crate::accel::tile_lanes() {
+            16 => KdTree::occluded_tile::<W16>(self, rays),
+            _ => KdTree::occluded_tile::<W8>(self, rays),
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! Stage: accel. Packet kd-tree traversal (Wald 2004, PhD thesis, section 7.3; Wald,
 //! Slusallek, Benthin and Wagner 2001, "Interactive rendering with coherent ray
-//! tracing"): `LANES` rays walk the tree together, one SIMD register per quantity.
+//! tracing"): the rays of a packet, at any width of [`crate::simd`], walk the tree together, one SIMD register per quantity.
 //!
 //! At an inner node every lane computes where it crosses the split plane; the packet
 //! goes near-only, far-only, or near now and far later for all its lanes at once, with a
@@ -17,7 +17,8 @@
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and
 //!   traced one group after the other; [`packet_split_count`] counts them. A group of
-//!   one lane takes the scalar traversal, whose answer is the same.
+//!   at most [`Simd::SCALAR_GROUP_MAX`] lanes takes the scalar traversal lane by lane,
+//!   whose answer is the same.
 //! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
 //!   [`crate::accel::prims_packet`], bit-identical to the scalar tests, and merge in
 //!   [`crate::ray::Hit::is_closer`] order; a stack entry is dropped for the lanes whose
@@ -26,13 +27,12 @@
 //!   and their output lanes are left as they were.
 
 use super::KdTree;
+use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
-use crate::ray::{Hit, Ray};
+use crate::ray::Hit;
 use crate::scene::Aabb;
-use crate::simd::{
-    LANES, Mask, Vf, Vu, any, bits, mask_from_bits, max_abs, max_gt, min_lt, none, select, splat,
-};
+use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, max_abs};
 use std::cell::Cell;
 
 thread_local! {
@@ -47,24 +47,24 @@ pub fn packet_split_count() -> u64 {
 
 /// One pending far child: its node, the lanes that need it, and their interval.
 #[derive(Clone, Copy)]
-struct Entry {
+struct Entry<W: Simd> {
     node: u32,
-    lanes: Mask,
-    t_near: Vf,
-    t_far: Vf,
+    lanes: Mask<W>,
+    t_near: Vf<W>,
+    t_far: Vf<W>,
 }
 
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
 /// leaf limit `next_up(best.t)`.
 #[inline]
-fn next_up(v: Vf) -> Vf {
+fn next_up<F: Float>(v: F) -> F {
     let b = v.to_bits();
-    let one = Vu::splat(1);
-    let up = Vf::from_bits(b + one);
-    let down = Vf::from_bits(b - one);
-    let pos = v.simd_gt(Vf::ZERO) & v.simd_lt(splat(f32::INFINITY));
-    let r = select(pos, up, select(v.simd_lt(Vf::ZERO), down, v));
-    select(v.simd_eq(Vf::ZERO), Vf::from_bits(one), r)
+    let one = F::U::splat(1);
+    let up = F::from_bits(b + one);
+    let down = F::from_bits(b - one);
+    let pos = v.cmp_gt(F::ZERO) & v.cmp_lt(F::splat(f32::INFINITY));
+    let r = F::select(pos, up, F::select(v.cmp_lt(F::ZERO), down, v));
+    F::select(v.cmp_eq(F::ZERO), F::from_bits(one), r)
 }
 
 /// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
@@ -72,7 +72,12 @@ fn next_up(v: Vf) -> Vf {
 /// (never a lane with a NaN or infinite origin or direction, a zero direction or
 /// `!(t_min <= t_max)`, as in the scalar path).
 #[inline]
-fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf) {
+pub(super) fn clip_to_box_packet<W: Simd>(
+    b: &Aabb,
+    rays: &RayPacket<W>,
+    active: Mask<W>,
+) -> (Mask<W>, Vf<W>, Vf<W>) {
+    let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
     let (mut t0, mut t1) = (rays.t_min, rays.t_max);
     let mut live = active & rays.usable();
     let o_max = max_abs(&rays.org);
@@ -81,26 +86,29 @@ fn clip_to_box_packet(b: &Aabb, rays: &RayPacket, active: Mask) -> (Mask, Vf, Vf
         let (lo, hi) = (b.min[axis], b.max[axis]);
         let margin = (splat(lo.abs().max(hi.abs())) + o_max) * splat(PLANE_SLACK);
         let d = rays.dir[axis];
-        let parallel = d.simd_eq(Vf::ZERO);
-        let inside = o.simd_ge(splat(lo) - margin) & o.simd_le(splat(hi) + margin);
+        let parallel = d.cmp_eq(Vf::<W>::ZERO);
+        let inside = o.cmp_ge(splat(lo) - margin) & o.cmp_le(splat(hi) + margin);
         live &= !parallel | inside;
         let inv = rays.inv_dir[axis];
         let slack = margin * inv.abs();
         let ta = (splat(lo) - o) * inv;
         let tb = (splat(hi) - o) * inv;
-        let positive = d.simd_gt(Vf::ZERO);
+        let positive = d.cmp_gt(Vf::<W>::ZERO);
         let t_lo = select(positive, ta, tb);
         let t_hi = select(positive, tb, ta);
         t0 = select(parallel, t0, t0.max(t_lo - slack));
         t1 = select(parallel, t1, t1.min(t_hi + slack));
     }
-    (live & t0.simd_le(t1), t0, t1)
+    (live & t0.cmp_le(t1), t0, t1)
 }
 
 /// Lane groups of `active` that agree on every direction sign, counting the packets
 /// that had to be split ([`packet_split_count`]).
 #[inline]
-fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
+pub(super) fn coherent_groups<W: Simd>(
+    rays: &RayPacket<W>,
+    active: LaneBits,
+) -> ([LaneBits; 8], usize) {
     let (groups, count) = sign_groups(rays, active);
     if count > 1 {
         PACKET_SPLITS.with(|c| c.set(c.get() + 1));
@@ -108,48 +116,42 @@ fn coherent_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
     (groups, count)
 }
 
-/// The lane of a group of one, and its ray: such a group is traced by the scalar
-/// traversal, which gives the same answer bit for bit (the packet path's invariant) for
-/// less work than a packet step with three lanes masked off. Incoherent packets (cosine
-/// bounces) split into about three groups, most of them lone lanes.
+/// Whether a group is traced lane by lane with the scalar traversal: a group of at most
+/// [`Simd::SCALAR_GROUP_MAX`] lanes, which gives the same answer bit for bit (the packet
+/// path's invariant) for less work than a packet step with most lanes masked off.
+/// Incoherent packets (cosine bounces) split into several groups, most of them small.
 #[inline]
-fn lone_lane(rays: &RayPacket, group: u32) -> Option<(usize, Ray)> {
-    if group.count_ones() != 1 {
-        return None;
-    }
-    let i = group.trailing_zeros() as usize;
-    rays.lane(i).map(|ray| (i, ray))
+fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
+    group.count_ones() <= W::SCALAR_GROUP_MAX
 }
 
 /// How many groups the traversal walks the active lanes of `rays` in: 1 for a packet
 /// whose lanes agree on every direction sign, else one per sign octant present.
 /// `raypack bench` reports the share of packets of a ray set that split.
-pub fn sign_group_count(rays: &RayPacket) -> usize {
-    sign_groups(rays, bits(rays.active)).1
+pub fn sign_group_count<W: Simd>(rays: &RayPacket<W>) -> usize {
+    sign_groups(rays, rays.active.bits()).1
 }
 
 /// Lane groups of `active` that agree on every direction sign: one group when the
 /// packet is coherent, else one per sign octant present (zero components count as
-/// positive; they agree with either side).
+/// positive; they agree with either side), at most eight.
 #[inline]
-fn sign_groups(rays: &RayPacket, active: u32) -> ([u32; LANES], usize) {
-    let neg = rays.dir.map(|d| bits(d.simd_lt(Vf::ZERO)) & active);
-    let pos = rays.dir.map(|d| bits(d.simd_gt(Vf::ZERO)) & active);
-    let mut groups = [0u32; LANES];
+fn sign_groups<W: Simd>(rays: &RayPacket<W>, active: LaneBits) -> ([LaneBits; 8], usize) {
+    let neg = rays.dir.map(|d| d.cmp_lt(Vf::<W>::ZERO).bits() & active);
+    let pos = rays.dir.map(|d| d.cmp_gt(Vf::<W>::ZERO).bits() & active);
+    let mut groups = [0; 8];
     if (0..3).all(|a| neg[a] == 0 || pos[a] == 0) {
         groups[0] = active;
         return (groups, 1);
     }
-    let octant = |lane: u32| (0..3).map(|a| ((neg[a] >> lane) & 1) << a).sum::<u32>();
-    let (mut left, mut count) = (active, 0);
-    while left != 0 {
-        let key = octant(left.trailing_zeros());
-        let group = (0..LANES as u32)
-            .filter(|&i| left & (1 << i) != 0 && octant(i) == key)
-            .fold(0, |g, i| g | (1 << i));
-        groups[count] = group;
-        count += 1;
-        left &= !group;
+    let mut count = 0;
+    for key in 0..8 {
+        let pick = |a: usize| if key & (1 << a) != 0 { neg[a] } else { !neg[a] };
+        let group = active & pick(0) & pick(1) & pick(2);
+        if group != 0 {
+            groups[count] = group;
+            count += 1;
+        }
     }
     (groups, count)
 }
@@ -158,23 +160,29 @@ impl KdTree {
     /// Closest hits of the active lanes of `rays` (planes included); inactive lanes get
     /// [`crate::ray::Hit::MISS`]. Lane by lane, the same hit as
     /// [`crate::accel::Accel::intersect`], `t`, `u`, `v` bit-identical.
-    pub fn intersect_packet(&self, rays: &RayPacket) -> HitPacket {
+    pub fn intersect_packet<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
         let mut best = HitPacket::miss();
-        let (groups, count) = coherent_groups(rays, bits(rays.active));
-        let mut alone = [None; LANES];
+        let (groups, count) = coherent_groups(rays, rays.active.bits());
+        let mut alone = [None; MAX_LANES];
+        let mut any_alone = false;
         for &group in &groups[..count] {
-            match lone_lane(rays, group) {
-                Some((i, ray)) => {
-                    let mut hit = Hit::MISS;
-                    self.traverse::<false>(&ray, &mut hit);
-                    alone[i] = Some(hit);
+            if goes_scalar::<W>(group) {
+                any_alone = true;
+                let mut left = group;
+                while left != 0 {
+                    let i = left.trailing_zeros() as usize;
+                    left &= left - 1;
+                    if let Some(ray) = rays.lane(i) {
+                        let mut hit = Hit::MISS;
+                        self.traverse::<false>(&ray, &mut hit);
+                        alone[i] = Some(hit);
+                    }
                 }
-                None => {
-                    self.traverse_packet::<false>(rays, mask_from_bits(group), &mut best);
-                }
+            } else {
+                self.traverse_packet::<W, false>(rays, Mask::<W>::from_bits(group), &mut best);
             }
         }
-        if alone.iter().any(Option::is_some) {
+        if any_alone {
             let grouped = best;
             best = HitPacket::from_lanes(|i| alone[i].unwrap_or_else(|| grouped.lane(i)));
         }
@@ -185,24 +193,31 @@ impl KdTree {
 
     /// Bit `i` set when active lane `i` is occluded between `t_min` and `t_max`; the
     /// same answer as [`crate::accel::Accel::occluded`] lane by lane.
-    pub fn occluded_packet(&self, rays: &RayPacket) -> u32 {
+    pub fn occluded_packet<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
         let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
         let mut best = HitPacket::miss();
-        let rest = bits(rays.active & !by_plane);
+        let rest = (rays.active & !by_plane).bits();
         let (groups, count) = coherent_groups(rays, rest);
-        let mut occluded = bits(by_plane);
+        let mut occluded = by_plane.bits();
         for &group in &groups[..count] {
-            match lone_lane(rays, group) {
-                Some((_, ray)) => {
+            if goes_scalar::<W>(group) {
+                let mut left = group;
+                while left != 0 {
+                    let i = left.trailing_zeros() as usize;
+                    left &= left - 1;
                     let mut unused = Hit::MISS;
-                    if self.traverse::<true>(&ray, &mut unused) {
-                        occluded |= group;
+                    if rays
+                        .lane(i)
+                        .is_some_and(|ray| self.traverse::<true>(&ray, &mut unused))
+                    {
+                        occluded |= 1 << i;
                     }
                 }
-                None => {
-                    let lanes = mask_from_bits(group);
-                    occluded |= bits(self.traverse_packet::<true>(rays, lanes, &mut best));
-                }
+            } else {
+                let lanes = Mask::<W>::from_bits(group);
+                occluded |= self
+                    .traverse_packet::<W, true>(rays, lanes, &mut best)
+                    .bits();
             }
         }
         occluded
@@ -211,32 +226,47 @@ impl KdTree {
     /// Walks the tree with the lanes of `active`, which agree on every direction sign.
     /// Closest hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit
     /// anything in `(t_min, t_max)`, each lane leaving at its first hit.
-    fn traverse_packet<const ANY_HIT: bool>(
+    pub(super) fn traverse_packet<W: Simd, const ANY_HIT: bool>(
         &self,
-        rays: &RayPacket,
-        active: Mask,
-        best: &mut HitPacket,
-    ) -> Mask {
-        let (mut lanes, mut t_near, mut t_far) = clip_to_box_packet(&self.bounds, rays, active);
-        let mut occluded = Mask::ZERO;
-        if none(lanes) {
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+        best: &mut HitPacket<W>,
+    ) -> Mask<W> {
+        let (lanes, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, active);
+        self.traverse_packet_from::<W, ANY_HIT>(rays, active, (0, lanes, t_near, t_far), best)
+    }
+
+    /// [`Self::traverse_packet`] from `node`, the lanes `lanes` arriving there with the
+    /// interval `[t_near, t_far]` they had when clipped to the tree's box (the entry
+    /// point of [`super::traverse_tile`], which only passes near-only and far-only steps
+    /// that every lane takes, so no lane needs anything outside `node`'s subtree).
+    pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
+        &self,
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+        (mut node, mut lanes, mut t_near, mut t_far): (u32, Mask<W>, Vf<W>, Vf<W>),
+        best: &mut HitPacket<W>,
+    ) -> Mask<W> {
+        let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
+        let mut occluded = Mask::<W>::NONE;
+        if lanes.none() {
             return occluded;
         }
         // Near is the left child on axes where the group's directions are not negative.
-        let negative = rays.dir.map(|d| any(lanes & d.simd_lt(Vf::ZERO)));
-        let zero = rays.dir.map(|d| d.simd_eq(Vf::ZERO));
-        let any_zero = zero.map(|z| any(lanes & z));
+        let negative = rays.dir.map(|d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any());
+        let zero = rays.dir.map(|d| d.cmp_eq(Vf::<W>::ZERO));
+        let any_zero = zero.map(|z| (lanes & z).any());
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
         let coord_max = self.coord_max();
         let o_max = max_abs(&rays.org);
-        let margins: [Vf; 3] =
+        let margins: [Vf<W>; 3] =
             std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
-        let slacks: [Vf; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
-        let mut stack = Stack::<Entry>::new();
-        let mut node = 0u32;
+        let slacks: [Vf<W>; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
+        let mut stack = Stack::<Entry<W>>::new();
         loop {
             let n = self.nodes[node as usize];
             if !n.is_leaf() {
+                bump(|c| c.node_steps += 1);
                 let axis = n.axis();
                 let children = n.children();
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
@@ -255,71 +285,74 @@ impl KdTree {
                     // Lanes parallel to the plane keep their interval and go to the
                     // sides within `margin` of their origin.
                     let z = zero[axis];
-                    let left_only = (o + margin).simd_lt(split);
-                    let right_only = (o - margin).simd_gt(split);
+                    let left_only = (o + margin).cmp_lt(split);
+                    let right_only = (o - margin).cmp_gt(split);
                     let (near_z, far_z) = if negative[axis] {
                         (right_only, left_only)
                     } else {
                         (left_only, right_only)
                     };
                     (
-                        select(z, near_z, lo.simd_gt(t_far)),
-                        select(z, far_z, hi.simd_lt(t_near)),
+                        (z & near_z) | (!z & lo.cmp_gt(t_far)),
+                        (z & far_z) | (!z & hi.cmp_lt(t_near)),
                     )
                 } else {
-                    let near_only = lo.simd_gt(t_far);
+                    let near_only = lo.cmp_gt(t_far);
                     // The commonest step: every lane goes near only, its mask unchanged
                     // (the far test below could not remove a near-only lane).
-                    if none(lanes & !near_only) {
+                    if (lanes & !near_only).none() {
                         node = near;
                         continue;
                     }
-                    (near_only, hi.simd_lt(t_near))
+                    (near_only, hi.cmp_lt(t_near))
                 };
                 // As in the scalar path, near-only wins when both tests pass.
                 let near_lanes = lanes & !(far_only & !near_only);
                 let far_lanes = lanes & !near_only;
-                if none(far_lanes) {
+                if far_lanes.none() {
                     node = near;
                     lanes = near_lanes;
-                } else if none(near_lanes) {
+                } else if near_lanes.none() {
                     node = far;
                     lanes = far_lanes;
                 } else {
                     stack.push(Entry {
                         node: far,
                         lanes: far_lanes,
-                        t_near: select(zero[axis], t_near, max_gt(lo, t_near)),
+                        t_near: select(zero[axis], t_near, lo.max_gt(t_near)),
                         t_far,
                     });
                     node = near;
                     lanes = near_lanes;
-                    t_far = select(zero[axis], t_far, min_lt(hi, t_far));
+                    t_far = select(zero[axis], t_far, hi.min_lt(t_far));
                 }
                 continue;
             }
             let first = n.leaf_first() as usize;
             let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
+            bump(|c| c.leaf_visits += 1);
             // Half the leaves are empty: skip the limit's arithmetic there.
             if !prims.is_empty() {
                 if ANY_HIT {
                     let mut live = lanes;
                     for &p in prims {
+                        bump(|c| c.prim_tests += 1);
                         let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
                         occluded |= hits.mask;
                         live &= !hits.mask;
-                        if none(live) {
+                        if live.none() {
                             break;
                         }
                     }
-                    if none(active & !occluded) {
+                    if (active & !occluded).none() {
                         return occluded;
                     }
                 } else {
                     let mut limit = next_up(best.t).min(rays.t_max);
+                    bump(|c| c.prim_tests += prims.len() as u64);
                     for &p in prims {
                         let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
-                        if any(best.merge(&hits, p)) {
+                        if best.merge(&hits, p).any() {
                             limit = next_up(best.t).min(rays.t_max);
                         }
                     }
@@ -332,9 +365,9 @@ impl KdTree {
                 lanes = if ANY_HIT {
                     e.lanes & !occluded
                 } else {
-                    e.lanes & !e.t_near.simd_gt(best.t)
+                    e.lanes & !e.t_near.cmp_gt(best.t)
                 };
-                if any(lanes) {
+                if lanes.any() {
                     (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
                     break;
                 }

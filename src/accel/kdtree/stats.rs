@@ -1,0 +1,65 @@
+//! Stage: accel. Traversal counters: inner-node steps, leaf visits and primitive tests,
+//! per thread, for `raypack bench` to report per ray and mode. A packet or tile group
+//! counts one step per node it visits, whatever its number of active lanes, so the
+//! counts per ray show how much work a packet shares.
+//!
+//! Compiled in only with the `stats` feature (`cargo build --release --features
+//! stats`): without it [`bump`] is empty and the kernels are unchanged.
+
+/// Work done by the traversals of one thread.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalCounts {
+    pub node_steps: u64,
+    pub leaf_visits: u64,
+    pub prim_tests: u64,
+}
+
+impl TraversalCounts {
+    /// `self - earlier`, field by field.
+    pub fn since(self, earlier: TraversalCounts) -> TraversalCounts {
+        TraversalCounts {
+            node_steps: self.node_steps - earlier.node_steps,
+            leaf_visits: self.leaf_visits - earlier.leaf_visits,
+            prim_tests: self.prim_tests - earlier.prim_tests,
+        }
+    }
+
+    /// The sum, field by field.
+    pub fn plus(self, o: TraversalCounts) -> TraversalCounts {
+        TraversalCounts {
+            node_steps: self.node_steps + o.node_steps,
+            leaf_visits: self.leaf_visits + o.leaf_visits,
+            prim_tests: self.prim_tests + o.prim_tests,
+        }
+    }
+}
+
+/// Whether the counters are compiled in.
+pub const ENABLED: bool = cfg!(feature = "stats");
+
+#[cfg(feature = "stats")]
+thread_local! {
+    static COUNTS: std::cell::Cell<TraversalCounts> =
+        const { std::cell::Cell::new(TraversalCounts { node_steps: 0, leaf_visits: 0, prim_tests: 0 }) };
+}
+
+/// Applies `f` to this thread's counters (nothing without the `stats` feature).
+#[inline(always)]
+pub fn bump(f: impl FnOnce(&mut TraversalCounts)) {
+    #[cfg(feature = "stats")]
+    COUNTS.with(|c| {
+        let mut v = c.get();
+        f(&mut v);
+        c.set(v);
+    });
+    #[cfg(not(feature = "stats"))]
+    let _ = f;
+}
+
+/// This thread's counters so far (zero without the `stats` feature).
+pub fn counts() -> TraversalCounts {
+    #[cfg(feature = "stats")]
+    return COUNTS.with(std::cell::Cell::get);
+    #[cfg(not(feature = "stats"))]
+    TraversalCounts::default()
+}
