@@ -7,11 +7,17 @@
 
 use super::{BadInput, ImageSide, check_image_size};
 use anyhow::Context;
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 use raypack::accel::kdtree::KdTree;
 use raypack::render::film::ImageFormat;
+use raypack::render::gi::{GiScene, render_gi};
+use raypack::render::path::PathTracer;
+use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
 use raypack::render::{Mode, RayCounts, render, tiles};
 use raypack::scene::{AntiAlias, Scene};
+use std::collections::BinaryHeap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -44,6 +50,36 @@ pub struct Args {
     /// time; both give the same image.
     #[arg(long, value_enum, default_value_t = ModeArg::Packet)]
     pub mode: ModeArg,
+    /// Light transport: the tutorial's Whitted tracer, or global illumination by path
+    /// tracing or photon mapping (scenes/README.md gives their materials and emitters).
+    /// With path and photon, --spp takes any count.
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Whitted)]
+    pub integrator: IntegratorArg,
+    /// Path and photon: most scattering events per path (default: Russian roulette
+    /// alone ends paths).
+    #[arg(long)]
+    pub max_bounces: Option<u32>,
+    /// Photon: photons shot from the emitters.
+    #[arg(long, default_value_t = PhotonSettings::default().photons)]
+    pub photons: u32,
+    /// Photon: final-gather rays per camera sample.
+    #[arg(long, default_value_t = PhotonSettings::default().gather)]
+    pub gather: u32,
+    /// Photon: photons per density estimate (k nearest).
+    #[arg(long, default_value_t = PhotonSettings::default().k)]
+    pub photon_k: usize,
+    /// Path and photon: radiance of a uniform sky seen by rays that leave the scene, one
+    /// value or R,G,B (default: the scene's background).
+    #[arg(long, value_delimiter = ',', num_args = 1..=3)]
+    pub sky: Option<Vec<f32>>,
+}
+
+/// `--integrator`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorArg {
+    Whitted,
+    Path,
+    Photon,
 }
 
 /// `--mode`.
@@ -74,28 +110,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let (mut scene, warnings) = raypack::scene::file::load_with_warnings(&args.scene)?;
     super::warn(&warnings);
-    apply_overrides(&mut scene, &args)?;
-    let threads = match args.threads {
-        Some(0) => return Err(BadInput("--threads must be at least 1".into()).into()),
-        Some(t) => t,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start the worker threads")?;
+    if args.integrator != IntegratorArg::Whitted {
+        return run_gi(scene, &args);
+    }
+    apply_overrides(&mut scene, &args, args.spp)?;
+    let (threads, pool) = worker_pool(args.threads)?;
 
     let start = Instant::now();
     let accel = pool.install(|| KdTree::build(&scene.geometry));
     let build_seconds = start.elapsed().as_secs_f64();
 
     let s = &scene.settings;
-    let bar = ProgressBar::new(tiles::tiles(s.width, s.height).len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}")
-            .context("progress bar template")?
-            .progress_chars("=> "),
-    );
+    let bar = tile_bar(s.width, s.height)?;
     let start = Instant::now();
     let rendered = pool.install(|| render(&scene, &accel, args.mode.into(), &|| bar.inc(1)));
     let render_seconds = start.elapsed().as_secs_f64();
@@ -118,9 +144,161 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Renders with the path tracer or the photon mapper: any `--spp`, the sky, and a
+/// summary with rays by kind, rays/s and, for photons, the map's build and lookup times.
+fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
+    let spp = args.spp.unwrap_or(16);
+    if spp == 0 {
+        return Err(BadInput("--spp must be at least 1".into()).into());
+    }
+    let environment = match args.sky.as_deref() {
+        None => scene.settings.background,
+        Some([v]) => Vec3::splat(*v),
+        Some([r, g, b]) => Vec3::new(*r, *g, *b),
+        Some(_) => return Err(BadInput("--sky takes one value or R,G,B".into()).into()),
+    };
+    if !environment.is_finite() || environment.min_element() < 0.0 {
+        return Err(BadInput("--sky values must be finite and >= 0".into()).into());
+    }
+    if args.photon_k < 2 {
+        return Err(BadInput("--photon-k must be at least 2".into()).into());
+    }
+    apply_overrides(&mut scene, args, None)?;
+    let (threads, pool) = worker_pool(args.threads)?;
+    let start = Instant::now();
+    let accel = pool.install(|| KdTree::build(&scene.geometry));
+    let build_seconds = start.elapsed().as_secs_f64();
+    let gi = GiScene::new(&scene, &accel, environment, args.max_bounces);
+    if gi.lights.photon_power() <= 0.0 && gi.lights.is_empty() {
+        eprintln!(
+            "warning: {}: nothing emits light (no emissive material, light or sky): the image is black",
+            args.scene.display()
+        );
+    }
+    let s = &scene.settings;
+    let bar = tile_bar(s.width, s.height)?;
+    let mut photon_lines = String::new();
+    let start = Instant::now();
+    let rendered = match args.integrator {
+        IntegratorArg::Path => {
+            let tracer = PathTracer { scene: gi };
+            pool.install(|| render_gi(&scene, &tracer, spp, &|| bar.inc(1)))
+        }
+        _ => {
+            let settings = PhotonSettings {
+                photons: args.photons,
+                gather: args.gather,
+                k: args.photon_k,
+                seed: scene.settings.seed,
+                ..PhotonSettings::default()
+            };
+            let mapper = pool.install(|| PhotonMapper::new(gi, settings));
+            let lookup = pool.install(|| lookup_seconds(&mapper));
+            let st = &mapper.stats;
+            photon_lines = format!(
+                "photons    {} shot: {} global, {} caustic stored; shot in {:.3} s ({} rays), \
+                 kd-trees built in {:.3} s\n\
+                 lookup     {:.2} us per {}-nearest query (global map)\n",
+                args.photons,
+                st.global,
+                st.caustic,
+                st.trace_seconds,
+                st.rays,
+                st.build_seconds,
+                lookup * 1e6,
+                settings.k,
+            );
+            let mut r = pool.install(|| render_gi(&scene, &mapper, spp, &|| bar.inc(1)));
+            r.counts.photon = st.rays;
+            r
+        }
+    };
+    let render_seconds = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    rendered.film.write(&args.output)?;
+    let c = &rendered.counts;
+    let name = match args.integrator {
+        IntegratorArg::Path => "path tracing",
+        _ => "photon mapping",
+    };
+    print!(
+        "scene      {}: {}x{}, {name}, {spp} samples per pixel, {threads} threads\n\
+         primitives {}\n\
+         build      {build_seconds:.3} s (kd-tree)\n\
+         {photon_lines}\
+         render     {render_seconds:.3} s\n\
+         rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon\n\
+         rays/s     {:.2} M\n\
+         wrote      {}\n",
+        args.scene.display(),
+        s.width,
+        s.height,
+        scene.geometry.prim_count(),
+        c.total(),
+        c.camera,
+        c.bounce,
+        c.shadow,
+        c.gather,
+        c.photon,
+        c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+        args.output.display(),
+    );
+    Ok(())
+}
+
+/// Mean time of a k-nearest query on the global map, at up to 100,000 stored photons'
+/// positions spread over the map (on the current pool).
+fn lookup_seconds(mapper: &PhotonMapper) -> f64 {
+    let photons = mapper.global.photons();
+    if photons.is_empty() {
+        return 0.0;
+    }
+    let step = photons.len().div_ceil(100_000);
+    let queries: Vec<&Photon> = photons.iter().step_by(step).collect();
+    let start = Instant::now();
+    let found: usize = queries
+        .par_iter()
+        .map_init(BinaryHeap::new, |heap, ph| {
+            mapper
+                .global
+                .nearest(ph.p, mapper.settings.k, mapper.radius, &|_| true, heap)
+                .len()
+        })
+        .sum();
+    std::hint::black_box(found);
+    start.elapsed().as_secs_f64() / queries.len() as f64
+}
+
+/// The local rayon pool of `--threads` (default: one per core) and its size.
+fn worker_pool(threads: Option<usize>) -> anyhow::Result<(usize, rayon::ThreadPool)> {
+    let threads = match threads {
+        Some(0) => return Err(BadInput("--threads must be at least 1".into()).into()),
+        Some(t) => t,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    Ok((threads, pool))
+}
+
+/// The progress bar on stderr, one step per tile of a `width x height` image.
+fn tile_bar(width: u32, height: u32) -> anyhow::Result<ProgressBar> {
+    let bar = ProgressBar::new(tiles::tiles(width, height).len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}")
+            .context("progress bar template")?
+            .progress_chars("=> "),
+    );
+    Ok(bar)
+}
+
 /// Applies the command line's size, sampling and seed to the scene's settings. The size
 /// that results is held to the limits of scene files ([`check_image_size`]).
-fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
+/// `spp` is the square sample count of the Whitted tracer (`None` for the GI
+/// integrators, which take `--spp` as it is).
+fn apply_overrides(scene: &mut Scene, args: &Args, spp: Option<u32>) -> Result<(), BadInput> {
     let s = &mut scene.settings;
     let side = |flag: &'static str, given: Option<u32>, scene: u32| match given {
         Some(value) => ImageSide::Flag { flag, value },
@@ -132,7 +310,7 @@ fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
     )?;
     s.width = args.width.unwrap_or(s.width);
     s.height = args.height.unwrap_or(s.height);
-    if let Some(spp) = args.spp {
+    if let Some(spp) = spp {
         let n = (spp as f64).sqrt().round() as u32;
         if spp == 0 || n * n != spp || n > 16 {
             return Err(BadInput(format!(

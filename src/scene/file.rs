@@ -762,6 +762,7 @@ impl<'a> Doc<'a> {
                 "glossiness",
                 "texture",
                 "uv_scale",
+                "emission",
             ],
         )?;
         let d = Material::default();
@@ -814,6 +815,7 @@ impl<'a> Doc<'a> {
             )?,
             texture,
             uv_scale,
+            emission: self.color(m, "emission", d.emission)?,
         })
     }
 
@@ -969,6 +971,7 @@ impl<'a> Doc<'a> {
                     ids.push(b.scene.materials.len() as u32);
                     b.scene.materials.push(Material {
                         color: m.diffuse,
+                        emission: m.emission,
                         texture,
                         ..Material::default()
                     });
