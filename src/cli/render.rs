@@ -196,15 +196,17 @@ fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
             let lookup = pool.install(|| lookup_seconds(&mapper));
             let st = &mapper.stats;
             photon_lines = format!(
-                "photons    {} shot: {} global, {} caustic stored; shot in {:.3} s ({} rays), \
-                 kd-trees built in {:.3} s\n\
-                 lookup     {:.2} us per {}-nearest query (global map)\n",
+                "photons    {} shot ({} rays) in {:.3} s: {} global, {} caustic stored\n\
+                 photon map kd-trees balanced in {:.3} s; irradiance precomputed at {} points \
+                 in {:.3} s; {:.2} us per {}-nearest lookup\n",
                 args.photons,
+                st.rays,
+                st.trace_seconds,
                 st.global,
                 st.caustic,
-                st.trace_seconds,
-                st.rays,
                 st.build_seconds,
+                mapper.irradiance.len(),
+                st.precompute_seconds,
                 lookup * 1e6,
                 settings.k,
             );
