@@ -198,3 +198,20 @@ fn gi_images_do_not_depend_on_the_thread_count() {
         assert!(one.film.pixels.iter().any(|p| p.max_element() > 0.0));
     }
 }
+
+/// The GI scene files of scenes/gi load from ../shared/scenes: the Cornell box lit by its
+/// emissive `light` alone, Sponza by a point sun and a sky.
+#[test]
+fn gi_scene_files_load() {
+    common::shared_scenes();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gi");
+    let cb = raypack::scene::file::load(&dir.join("cornell_box.toml")).unwrap();
+    assert!(cb.lights.is_empty());
+    assert_eq!(cb.geometry.triangles.len(), 36);
+    let emissive = (0..36).filter(|&t| cb.material(t).emission == Vec3::splat(20.0));
+    assert_eq!(emissive.count(), 2, "the light quad");
+    let sp = raypack::scene::file::load(&dir.join("sponza.toml")).unwrap();
+    assert_eq!(sp.geometry.triangles.len(), 262_267);
+    assert_eq!(sp.lights.len(), 1);
+    assert!(sp.settings.background.min_element() > 0.0);
+}
