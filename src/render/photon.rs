@@ -2,7 +2,7 @@
 //! Mapping", 2001): a global and a caustic photon map, each a balanced kd-tree searched
 //! for the k nearest photons, and final gathering for indirect diffuse light.
 //!
-//! Pass 1 shoots `photons` photons from the emitters ([`Lights::emit`]). At every hit on
+//! Pass 1 shoots `photons` photons from the emitters ([`super::lights::Lights::emit`]). At every hit on
 //! a surface with a Lambertian lobe a photon is stored in the global map, and also in the
 //! caustic map when every bounce before it was a delta (mirror or dielectric) one. Paths
 //! scatter by sampling the BSDF and continue by Russian roulette on the weight, so stored
