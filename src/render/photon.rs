@@ -26,8 +26,11 @@
 //! is left out, which makes the estimate unbiased for a uniform density (the sum of `k`
 //! powers over the disc through the `k`-th overestimates by `k / (k - 1)`). When fewer
 //! than `k` photons lie within `max_radius`, all of them count over that disc. Only the
-//! Lambertian lobe reads the maps; a Phong lobe's share of indirect light is gathered
-//! through the gather rays alone where they land on a diffuse surface.
+//! Lambertian lobe reads the maps: at the camera's vertex the gather rays sample every
+//! non-delta lobe, Phong ones included, but where a gather ray ends only the Lambertian
+//! reflection is estimated; a glossy lobe there is left out, a bias that vanishes in
+//! Lambertian scenes such as the Cornell box. [`GiScene::max_bounces`] caps the path
+//! tracer only; photon paths end by Russian roulette.
 
 use super::gi::{GiCounts, GiHit, GiScene, Integrator, Segment};
 use super::sample::Pcg32;
