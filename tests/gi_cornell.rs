@@ -6,6 +6,7 @@ mod common;
 
 use glam::Vec3;
 use raypack::accel::kdtree::KdTree;
+use raypack::render::Mode;
 use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
@@ -197,12 +198,13 @@ fn path_and_photon_block_averages_agree_on_the_cornell_box() {
     }
 }
 
-/// The same image, bit for bit, on 1 and 3 threads, for both integrators.
+/// The same image, bit for bit, on 1 and 3 threads and with camera rays traced in
+/// packets or one by one, for both integrators.
 #[test]
 fn gi_images_do_not_depend_on_the_thread_count() {
     let scene = cornell(24, 20);
     let accel = KdTree::build(&scene.geometry);
-    let render = |threads: usize, photon: bool| {
+    let render = |threads: usize, photon: bool, mode: Mode| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -218,15 +220,16 @@ fn gi_images_do_not_depend_on_the_thread_count() {
                         ..PhotonSettings::default()
                     },
                 );
-                render_gi(&scene, &pm, 2, &|| ())
+                render_gi(&scene, &pm, 2, mode, &|| ())
             } else {
-                render_gi(&scene, &PathTracer { scene: gi }, 5, &|| ())
+                render_gi(&scene, &PathTracer { scene: gi }, 5, mode, &|| ())
             }
         })
     };
     for photon in [false, true] {
-        let one = render(1, photon);
-        let three = render(3, photon);
+        let one = render(1, photon, Mode::Packet);
+        let three = render(3, photon, Mode::Packet);
+        let scalar = render(3, photon, Mode::Scalar);
         let bits = |f: &raypack::render::Film| -> Vec<[u32; 3]> {
             f.pixels
                 .iter()
@@ -235,6 +238,17 @@ fn gi_images_do_not_depend_on_the_thread_count() {
         };
         assert_eq!(bits(&one.film), bits(&three.film), "photon: {photon}");
         assert_eq!(one.counts, three.counts);
+        assert_eq!(
+            bits(&one.film),
+            bits(&scalar.film),
+            "packets, photon: {photon}"
+        );
+        assert_eq!(scalar.counts.camera_packets, 0);
+        assert_eq!(
+            (one.counts.camera, one.counts.total()),
+            (scalar.counts.camera, scalar.counts.total())
+        );
+        assert!(one.counts.camera_packets > 0);
         assert!(one.film.pixels.iter().any(|p| p.max_element() > 0.0));
     }
 }

@@ -185,7 +185,7 @@ fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
     let rendered = match args.integrator {
         IntegratorArg::Path => {
             let tracer = PathTracer { scene: gi };
-            pool.install(|| render_gi(&scene, &tracer, spp, &|| bar.inc(1)))
+            pool.install(|| render_gi(&scene, &tracer, spp, args.mode.into(), &|| bar.inc(1)))
         }
         _ => {
             let settings = PhotonSettings {
@@ -216,7 +216,8 @@ fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
                 lookup * 1e6,
                 settings.k,
             );
-            let mut r = pool.install(|| render_gi(&scene, &mapper, spp, &|| bar.inc(1)));
+            let mut r =
+                pool.install(|| render_gi(&scene, &mapper, spp, args.mode.into(), &|| bar.inc(1)));
             r.counts.photon = st.rays;
             r
         }
@@ -237,6 +238,7 @@ fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
          render     {render_seconds:.3} s\n\
          rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon\n\
          rays/s     {:.2} M\n\
+         {}\
          wrote      {}\n",
         args.scene.display(),
         s.width,
@@ -249,6 +251,14 @@ fn run_gi(mut scene: Scene, args: &Args) -> anyhow::Result<()> {
         c.gather,
         c.photon,
         c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+        if c.camera_packets > 0 {
+            format!(
+                "packets    camera rays in {} packets; other rays one by one\n",
+                c.camera_packets
+            )
+        } else {
+            String::new()
+        },
         args.output.display(),
     );
     Ok(())

@@ -11,10 +11,11 @@ use super::film::Film;
 use super::lights::Lights;
 use super::sample::{Pcg32, pixel_rng};
 use super::shade::{Shader, transmission};
-use super::tiles::tiles;
-use crate::accel::Accel;
+use super::tiles::{Mode, tiles};
+use crate::accel::{Accel, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::{Material, Scene};
+use crate::simd::LANES;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -31,6 +32,8 @@ pub struct GiCounts {
     pub gather: u64,
     /// Rays traced while shooting photons.
     pub photon: u64,
+    /// Packets the camera rays were traced in (0 in scalar mode); not in the total.
+    pub camera_packets: u64,
 }
 
 impl GiCounts {
@@ -46,13 +49,30 @@ impl AddAssign for GiCounts {
         self.shadow += o.shadow;
         self.gather += o.gather;
         self.photon += o.photon;
+        self.camera_packets += o.camera_packets;
     }
 }
 
 /// An estimator of the radiance arriving along a camera ray.
 pub trait Integrator: Sync {
-    /// One sample of the radiance along `ray` (a camera ray, already counted).
-    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3;
+    /// The scene it traces.
+    fn gi_scene(&self) -> &GiScene<'_>;
+
+    /// One sample of the radiance along camera ray `ray` (already counted) whose closest
+    /// hit `first` the caller has traced (in a packet, [`render_gi`]).
+    fn radiance_traced(
+        &self,
+        ray: &Ray,
+        first: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut GiCounts,
+    ) -> Vec3;
+
+    /// One sample of the radiance along camera ray `ray` (already counted).
+    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
+        let first = self.gi_scene().shader.accel.intersect(ray);
+        self.radiance_traced(ray, first, rng, counts)
+    }
 }
 
 /// What both integrators trace against: the scene, its accelerator, its emitters and
@@ -123,7 +143,31 @@ impl<'a> GiScene<'a> {
     /// transmission over the distance travelled (to zero for an absorbing medium that
     /// never ends).
     pub fn trace(&self, seg: &Segment, throughput: &mut Vec3) -> Option<GiHit<'a>> {
-        let Some(hit) = self.shader.accel.intersect(&seg.ray) else {
+        self.at_hit(seg, self.shader.accel.intersect(&seg.ray), throughput)
+    }
+
+    /// [`GiScene::trace`], or [`GiScene::at_hit`] when `known` holds the segment's
+    /// closest hit already (a camera ray traced in a packet).
+    pub fn trace_known(
+        &self,
+        seg: &Segment,
+        known: Option<Option<Hit>>,
+        throughput: &mut Vec3,
+    ) -> Option<GiHit<'a>> {
+        match known {
+            Some(hit) => self.at_hit(seg, hit, throughput),
+            None => self.trace(seg, throughput),
+        }
+    }
+
+    /// [`GiScene::trace`] for a segment whose closest hit `hit` is already known.
+    pub fn at_hit(
+        &self,
+        seg: &Segment,
+        hit: Option<Hit>,
+        throughput: &mut Vec3,
+    ) -> Option<GiHit<'a>> {
+        let Some(hit) = hit else {
             *throughput *= transmission(seg.medium, f32::INFINITY);
             return None;
         };
@@ -236,12 +280,16 @@ pub struct GiRendered {
 
 /// Renders `spp` samples per pixel of `scene`'s camera at its settings' size through
 /// `integrator` on the current rayon pool; `progress` is called once per finished tile.
+/// In [`Mode::Packet`] the camera rays of [`LANES`] neighbouring pixels are traced as one
+/// packet; the hits, and so the image, are those of [`Mode::Scalar`], bit for bit.
 pub fn render_gi(
     scene: &Scene,
     integrator: &dyn Integrator,
     spp: u32,
+    mode: Mode,
     progress: &(dyn Fn() + Sync),
 ) -> GiRendered {
+    let accel = integrator.gi_scene().shader.accel;
     let (width, height) = (scene.settings.width, scene.settings.height);
     let frame = scene.camera.frame(width, height);
     let seed = scene.settings.seed;
@@ -251,26 +299,52 @@ pub fn render_gi(
         .par_iter()
         .map(|t| {
             let mut counts = GiCounts::default();
-            let mut pixels = Vec::with_capacity((t.width * t.height) as usize);
-            for y in t.y0..t.y0 + t.height {
-                for x in t.x0..t.x0 + t.width {
-                    let mut sum = Vec3::ZERO;
-                    for k in 0..spp {
+            let pixels: Vec<(u32, u32)> = (t.y0..t.y0 + t.height)
+                .flat_map(|y| (t.x0..t.x0 + t.width).map(move |x| (x, y)))
+                .collect();
+            let mut out = vec![Vec3::ZERO; pixels.len()];
+            // Groups of LANES pixels along the tile's rows; sample k of every pixel of a
+            // group forms one camera packet in packet mode.
+            for (g, group) in pixels.chunks(LANES).enumerate() {
+                let mut sums = [Vec3::ZERO; LANES];
+                for k in 0..spp {
+                    let mut rngs: [Option<Pcg32>; LANES] = [const { None }; LANES];
+                    let mut rays: [Option<Ray>; LANES] = [None; LANES];
+                    for (i, &(x, y)) in group.iter().enumerate() {
                         let mut rng = pixel_rng(seed, x, y, k);
                         let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                        let ray = frame.ray(x as f32 + jx, y as f32 + jy);
+                        rays[i] = Some(frame.ray(x as f32 + jx, y as f32 + jy));
+                        rngs[i] = Some(rng);
+                    }
+                    let hits: [Option<Hit>; LANES] = match mode {
+                        Mode::Packet => {
+                            counts.camera_packets += 1;
+                            let h = accel.intersect_packet(&RayPacket::from_lanes(&rays));
+                            std::array::from_fn(|i| {
+                                let hit = h.lane(i);
+                                hit.is_hit().then_some(hit)
+                            })
+                        }
+                        Mode::Scalar => rays.map(|r| r.and_then(|r| accel.intersect(&r))),
+                    };
+                    for i in 0..group.len() {
+                        let (Some(ray), Some(rng)) = (rays[i], rngs[i].as_mut()) else {
+                            continue;
+                        };
                         counts.camera += 1;
-                        let l = integrator.radiance(&ray, &mut rng, &mut counts);
+                        let l = integrator.radiance_traced(&ray, hits[i], rng, &mut counts);
                         // A NaN or infinite sample would poison the pixel: drop it.
                         if l.is_finite() {
-                            sum += l;
+                            sums[i] += l;
                         }
                     }
-                    pixels.push(sum / spp as f32);
+                }
+                for (i, sum) in sums.iter().take(group.len()).enumerate() {
+                    out[g * LANES + i] = *sum / spp as f32;
                 }
             }
             progress();
-            (pixels, counts)
+            (out, counts)
         })
         .collect();
     let mut film = Film::new(width, height);

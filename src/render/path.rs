@@ -15,7 +15,7 @@
 
 use super::gi::{GiCounts, GiScene, Integrator, Segment, survives};
 use super::sample::Pcg32;
-use crate::ray::Ray;
+use crate::ray::{Hit, Ray};
 use glam::Vec3;
 
 /// The path tracer over a prepared scene.
@@ -24,7 +24,17 @@ pub struct PathTracer<'a> {
 }
 
 impl Integrator for PathTracer<'_> {
-    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
+    fn gi_scene(&self) -> &GiScene<'_> {
+        &self.scene
+    }
+
+    fn radiance_traced(
+        &self,
+        ray: &Ray,
+        first: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut GiCounts,
+    ) -> Vec3 {
         let g = &self.scene;
         let mut seg = Segment::new(*ray);
         let mut beta = Vec3::ONE;
@@ -33,8 +43,9 @@ impl Integrator for PathTracer<'_> {
         // and after a delta lobe (emission then counts in full).
         let mut bsdf_pdf: Option<f32> = None;
         let mut vertex = 0u32;
+        let mut first = Some(first);
         loop {
-            let Some(h) = g.trace(&seg, &mut beta) else {
+            let Some(h) = g.trace_known(&seg, first.take(), &mut beta) else {
                 l += beta * g.lights.environment;
                 break;
             };

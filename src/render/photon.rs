@@ -34,7 +34,7 @@
 
 use super::gi::{GiCounts, GiHit, GiScene, Integrator, Segment};
 use super::sample::Pcg32;
-use crate::ray::Ray;
+use crate::ray::{Hit, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::cmp::Ordering;
@@ -479,17 +479,28 @@ fn shoot(
 }
 
 impl Integrator for PhotonMapper<'_> {
-    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
+    fn gi_scene(&self) -> &GiScene<'_> {
+        &self.scene
+    }
+
+    fn radiance_traced(
+        &self,
+        ray: &Ray,
+        first: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut GiCounts,
+    ) -> Vec3 {
         let g = &self.scene;
         let mut heap = BinaryHeap::with_capacity(self.settings.k + 1);
         let mut seg = Segment::new(*ray);
         let mut beta = Vec3::ONE;
         let mut l = Vec3::ZERO;
+        let mut first = Some(first);
         for step in 0..MAX_CHAIN {
             if step > 0 {
                 counts.bounce += 1;
             }
-            let Some(h) = g.trace(&seg, &mut beta) else {
+            let Some(h) = g.trace_known(&seg, first.take(), &mut beta) else {
                 l += beta * g.lights.environment;
                 break;
             };
