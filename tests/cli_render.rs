@@ -226,3 +226,71 @@ fn output_names_other_than_png_pfm_and_exr_are_refused_before_rendering() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `--integrator path` and `photon` render the GI Cornell box (any `--spp`), print rays
+/// by kind and the photon map's times, give the same PFM on 1 and 2 threads, and refuse
+/// `--spp 0`.
+#[test]
+fn gi_integrators_render_the_cornell_box() {
+    let dir = scratch("gi");
+    let scene = repo().join("scenes/gi/cornell_box.toml");
+    for integrator in ["path", "photon"] {
+        let mut files = Vec::new();
+        for threads in ["1", "2"] {
+            let pfm = dir.join(format!("{integrator}-{threads}.pfm"));
+            let out = raypack(&[
+                "render",
+                s(&scene),
+                "-o",
+                s(&pfm),
+                "--integrator",
+                integrator,
+                "--spp",
+                "3",
+                "--photons",
+                "5000",
+                "--gather",
+                "2",
+                "--width",
+                "20",
+                "--height",
+                "16",
+                "--threads",
+                threads,
+            ]);
+            check(&out, integrator);
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            for word in [
+                "camera",
+                "bounce",
+                "shadow",
+                "rays/s",
+                "3 samples per pixel",
+            ] {
+                assert!(stdout.contains(word), "{integrator}: no {word}:\n{stdout}");
+            }
+            if integrator == "photon" {
+                assert!(stdout.contains("lookup"), "{stdout}");
+            }
+            files.push(std::fs::read(&pfm).unwrap());
+        }
+        assert!(files[0] == files[1], "{integrator}: 1 and 2 threads differ");
+        let film =
+            raypack::render::Film::read_pfm(&dir.join(format!("{integrator}-1.pfm"))).unwrap();
+        assert_eq!((film.width, film.height), (20, 16));
+        assert!(film.pixels.iter().any(|p| p.max_element() > 0.0));
+    }
+    let out = raypack(&[
+        "render",
+        s(&scene),
+        "-o",
+        s(&dir.join("zero.pfm")),
+        "--integrator",
+        "path",
+        "--spp",
+        "0",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.join("zero.pfm").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

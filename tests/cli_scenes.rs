@@ -69,6 +69,23 @@ fn benchmark_scenes_render_by_name_and_by_path() {
 }
 
 #[test]
+fn the_cornell_box_by_name_is_lit_by_its_emitter_under_global_illumination() {
+    common::shared_scenes();
+    let dir = scratch("gi");
+    let gi = ["--integrator", "path", "--spp", "4"];
+    // By name, the MTL `light` emits (Ka 20): the same image as the GI scene file.
+    let by_name = render(&dir, "cornell_box", "n.pfm", &gi);
+    let by_file = render(&dir, "scenes/gi/cornell_box.toml", "f.pfm", &gi);
+    assert!(
+        by_name == by_file,
+        "cornell_box by name and by scene file differ"
+    );
+    let png = render(&dir, "cornell_box", "n.png", &gi);
+    assert!(brightness(&png) > 20.0, "the box renders dark");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn an_obj_without_a_camera_is_framed_and_overrides_move_any_camera() {
     let dir = scratch("overrides");
     // A unit square far from the origin: the default camera must find it.

@@ -11,18 +11,28 @@
 //! stderr; the summary (build and render times, rays by kind, rays per second) is
 //! printed before the image is written (PNG, PFM or EXR by the name; whole or not at
 //! all), so a failed write still reports the render.
+//!
+//! `--integrator path|photon` renders with global illumination instead
+//! ([`raypack::render::gi`]): a mesh scene is then lit by its emissive materials (MTL
+//! `Ke`, or `Ka` above 1) and `--sky`, not by the light rig; photon mapping also prints
+//! the photon map's build and lookup times.
 
 use super::{BadInput, ImageSide, check_image_size};
 use anyhow::Context;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 use raypack::accel::kdtree::KdTree;
 use raypack::rayset::View;
 use raypack::rayset::scenes;
 use raypack::render::film::{ImageFormat, WriteOptions};
-use raypack::render::{Mode, RayCounts, render, tiles};
+use raypack::render::gi::{GiScene, render_gi};
+use raypack::render::path::PathTracer;
+use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
+use raypack::render::{Film, Mode, RayCounts, render, tiles};
 use raypack::scene::{AntiAlias, Camera, Light, Scene, Warning};
 use serde::Serialize;
+use std::collections::{BTreeMap, BinaryHeap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -43,7 +53,7 @@ pub struct Args {
     pub height: Option<u32>,
     /// Camera samples per pixel, a square n*n: 1 turns anti-aliasing off; otherwise an
     /// adaptive scene stays adaptive with n x n samples at edges, any other samples every
-    /// pixel n x n.
+    /// pixel n x n. With --integrator path or photon: any count (default 16).
     #[arg(long)]
     pub spp: Option<u32>,
     /// Worker threads (0, the default: one per core).
@@ -70,6 +80,39 @@ pub struct Args {
     /// JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Light transport: the tutorial's Whitted tracer, or global illumination by path
+    /// tracing or photon mapping (scenes/README.md gives their materials and emitters).
+    /// With path and photon, --spp takes any count.
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Whitted)]
+    pub integrator: IntegratorArg,
+    /// Path: most scattering events per path (default: Russian roulette
+    /// alone ends paths).
+    #[arg(long)]
+    pub max_bounces: Option<u32>,
+    /// Photon: photons shot from the emitters.
+    #[arg(long, default_value_t = PhotonSettings::default().photons)]
+    pub photons: u32,
+    /// Photon: final-gather rays per camera sample.
+    #[arg(long, default_value_t = PhotonSettings::default().gather)]
+    pub gather: u32,
+    /// Photon: photons per density estimate (k nearest).
+    #[arg(long, default_value_t = PhotonSettings::default().k)]
+    pub photon_k: usize,
+    /// Path and photon: radiance of a uniform sky seen by rays that leave the scene, one
+    /// value or R,G,B (default: the scene's background).
+    #[arg(long, value_delimiter = ',', num_args = 1..=3)]
+    pub sky: Option<Vec<f32>>,
+}
+
+/// `--integrator`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorArg {
+    /// The tutorial's recursive ray tracer (the default).
+    Whitted,
+    /// Unidirectional path tracing.
+    Path,
+    /// Photon mapping with final gathering.
+    Photon,
 }
 
 /// Camera overrides, each replacing one value of the scene's camera.
@@ -206,18 +249,10 @@ struct Report<'a> {
     primitives: u32,
     build_seconds: f64,
     render_seconds: f64,
-    rays: RaysReport,
+    integrator: &'a str,
+    /// Rays by kind (the kinds of the integrator), and `total`.
+    rays: BTreeMap<&'static str, u64>,
     mrays_per_second: f64,
-}
-
-#[derive(Serialize, Debug)]
-struct RaysReport {
-    total: u64,
-    primary: u64,
-    shadow: u64,
-    reflection: u64,
-    refraction: u64,
-    glossy: u64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -240,17 +275,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !exposure.is_finite() {
         return Err(BadInput("--exposure must be a finite number".into()).into());
     }
+    let options = WriteOptions {
+        exposure,
+        exr_half: args.half,
+    };
     super::check_outputs([("-o", Some(&args.output)), ("--json", args.json.as_ref())])?;
 
     let (mut scene, warnings, source) = load(&args.scene)?;
     super::warn(&warnings);
     args.camera.apply(&mut scene.camera)?;
-    apply_overrides(&mut scene, &args)?;
-    let threads = super::thread_count(args.threads);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start the worker threads")?;
+    if args.integrator != IntegratorArg::Whitted {
+        return run_gi(scene, &args, &options);
+    }
+    apply_overrides(&mut scene, &args, args.spp)?;
+    let (threads, pool) = worker_pool(args.threads)?;
 
     let start = Instant::now();
     let accel = pool.install(|| KdTree::build(&scene.geometry));
@@ -267,12 +305,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let s = &scene.settings;
-    let bar = ProgressBar::new(tiles::tiles(s.width, s.height).len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}")
-            .context("progress bar template")?
-            .progress_chars("=> "),
-    );
+    let bar = tile_bar(s.width, s.height)?;
     let start = Instant::now();
     let rendered = pool.install(|| render(&scene, &accel, args.mode, &|| bar.inc(1)));
     let render_seconds = start.elapsed().as_secs_f64();
@@ -290,42 +323,230 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c
         )
     );
-    if let Some(path) = &args.json {
-        let report = Report {
-            scene: &args.scene,
-            output: &args.output,
-            width: scene.settings.width,
-            height: scene.settings.height,
-            threads,
-            mode: args.mode.name(),
-            primitives: scene.geometry.prim_count(),
-            build_seconds,
-            render_seconds,
-            rays: RaysReport {
-                total: c.total(),
-                primary: c.primary,
-                shadow: c.shadow,
-                reflection: c.reflection,
-                refraction: c.refraction,
-                glossy: c.glossy,
-            },
-            mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
-        };
-        super::write_json(path, &report)?;
-    }
-    // The film's error names the file and the failure; its source is the OS error.
-    let options = WriteOptions {
-        exposure,
-        exr_half: args.half,
+    let rays = BTreeMap::from([
+        ("total", c.total()),
+        ("primary", c.primary),
+        ("shadow", c.shadow),
+        ("reflection", c.reflection),
+        ("refraction", c.refraction),
+        ("glossy", c.glossy),
+    ]);
+    let report = Report {
+        scene: &args.scene,
+        output: &args.output,
+        width: s.width,
+        height: s.height,
+        threads,
+        mode: args.mode.name(),
+        primitives: scene.geometry.prim_count(),
+        build_seconds,
+        render_seconds,
+        integrator: "whitted",
+        rays,
+        mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
     };
-    rendered.film.write_with(&args.output, &options)?;
+    finish(&args, &report, &rendered.film, &options)
+}
+
+/// Writes the `--json` report, then the image (whose error names the file, with the OS
+/// error as its source), once the summary is printed.
+fn finish(args: &Args, report: &Report, film: &Film, options: &WriteOptions) -> anyhow::Result<()> {
+    if let Some(path) = &args.json {
+        super::write_json(path, report)?;
+    }
+    film.write_with(&args.output, options)?;
     println!("wrote      {}", args.output.display());
     Ok(())
 }
 
+/// Renders with the path tracer or the photon mapper: any `--spp`, the sky, and a
+/// summary with rays by kind, rays/s and, for photons, the map's build and lookup times.
+fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Result<()> {
+    let spp = args.spp.unwrap_or(16);
+    if spp == 0 {
+        return Err(BadInput("--spp must be at least 1".into()).into());
+    }
+    let environment = match args.sky.as_deref() {
+        None => scene.settings.background,
+        Some([v]) => Vec3::splat(*v),
+        Some([r, g, b]) => Vec3::new(*r, *g, *b),
+        Some(_) => return Err(BadInput("--sky takes one value or R,G,B".into()).into()),
+    };
+    if !environment.is_finite() || environment.min_element() < 0.0 {
+        return Err(BadInput("--sky values must be finite and >= 0".into()).into());
+    }
+    if args.photon_k < 2 {
+        return Err(BadInput("--photon-k must be at least 2".into()).into());
+    }
+    apply_overrides(&mut scene, args, None)?;
+    let (threads, pool) = worker_pool(args.threads)?;
+    let start = Instant::now();
+    let accel = pool.install(|| KdTree::build(&scene.geometry));
+    let build_seconds = start.elapsed().as_secs_f64();
+    let gi = GiScene::new(&scene, &accel, environment, args.max_bounces);
+    if gi.lights.photon_power() <= 0.0 && gi.lights.is_empty() {
+        eprintln!(
+            "raypack: warning: {}: nothing emits light (no emissive material, light or sky): the image is black",
+            args.scene
+        );
+    }
+    let s = &scene.settings;
+    let bar = tile_bar(s.width, s.height)?;
+    let mut photon_lines = String::new();
+    let mut excluded = 0.0;
+    let start = Instant::now();
+    let rendered = match args.integrator {
+        IntegratorArg::Path => {
+            let tracer = PathTracer { scene: gi };
+            pool.install(|| render_gi(&scene, &tracer, spp, args.mode, &|| bar.inc(1)))
+        }
+        _ => {
+            let settings = PhotonSettings {
+                photons: args.photons,
+                gather: args.gather,
+                k: args.photon_k,
+                seed: scene.settings.seed,
+                ..PhotonSettings::default()
+            };
+            let mapper = pool.install(|| PhotonMapper::new(gi, settings));
+            // Timed apart: the lookup benchmark is not part of the render.
+            let lookup_start = Instant::now();
+            let lookup = pool.install(|| lookup_seconds(&mapper));
+            excluded = lookup_start.elapsed().as_secs_f64();
+            let st = &mapper.stats;
+            photon_lines = format!(
+                "photons    {} shot ({} rays) in {:.3} s: {} global, {} caustic stored\n\
+                 photon map kd-trees balanced in {:.3} s; irradiance precomputed at {} points \
+                 in {:.3} s; {:.2} us per {}-nearest lookup\n",
+                args.photons,
+                st.rays,
+                st.trace_seconds,
+                st.global,
+                st.caustic,
+                st.build_seconds,
+                mapper.irradiance.len(),
+                st.precompute_seconds,
+                lookup * 1e6,
+                settings.k,
+            );
+            let mut r = pool.install(|| render_gi(&scene, &mapper, spp, args.mode, &|| bar.inc(1)));
+            r.counts.photon = st.rays;
+            r
+        }
+    };
+    let render_seconds = start.elapsed().as_secs_f64() - excluded;
+    bar.finish_and_clear();
+    let c = &rendered.counts;
+    let name = match args.integrator {
+        IntegratorArg::Path => "path tracing",
+        _ => "photon mapping",
+    };
+    print!(
+        "scene      {}: {}x{}, {name}, {spp} samples per pixel, {threads} threads\n\
+         primitives {}\n\
+         build      {build_seconds:.3} s (kd-tree)\n\
+         {photon_lines}\
+         render     {render_seconds:.3} s\n\
+         rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon\n\
+         rays/s     {:.2} M\n\
+         {}",
+        args.scene,
+        s.width,
+        s.height,
+        scene.geometry.prim_count(),
+        c.total(),
+        c.camera,
+        c.bounce,
+        c.shadow,
+        c.gather,
+        c.photon,
+        c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+        if c.camera_packets > 0 {
+            format!(
+                "packets    camera rays in {} packets; other rays one by one\n",
+                c.camera_packets
+            )
+        } else {
+            String::new()
+        },
+    );
+    let rays = BTreeMap::from([
+        ("total", c.total()),
+        ("camera", c.camera),
+        ("bounce", c.bounce),
+        ("shadow", c.shadow),
+        ("gather", c.gather),
+        ("photon", c.photon),
+    ]);
+    let report = Report {
+        scene: &args.scene,
+        output: &args.output,
+        width: s.width,
+        height: s.height,
+        threads,
+        mode: args.mode.name(),
+        primitives: scene.geometry.prim_count(),
+        build_seconds,
+        render_seconds,
+        integrator: match args.integrator {
+            IntegratorArg::Path => "path",
+            _ => "photon",
+        },
+        rays,
+        mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+    };
+    finish(args, &report, &rendered.film, options)
+}
+
+/// Mean time of a k-nearest query on the global map, at up to 100,000 stored photons'
+/// positions spread over the map (on the current pool).
+fn lookup_seconds(mapper: &PhotonMapper) -> f64 {
+    let photons = mapper.global.photons();
+    if photons.is_empty() {
+        return 0.0;
+    }
+    let step = photons.len().div_ceil(100_000);
+    let queries: Vec<&Photon> = photons.iter().step_by(step).collect();
+    let start = Instant::now();
+    let found: usize = queries
+        .par_iter()
+        .map_init(BinaryHeap::new, |heap, ph| {
+            mapper
+                .global
+                .nearest(ph.p, mapper.settings.k, mapper.radius, &|_| true, heap)
+                .len()
+        })
+        .sum();
+    std::hint::black_box(found);
+    start.elapsed().as_secs_f64() / queries.len() as f64
+}
+
+/// The local rayon pool of `--threads` (0: one per core) and its size.
+fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::ThreadPool)> {
+    let threads = super::thread_count(threads);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    Ok((threads, pool))
+}
+
+/// The progress bar on stderr, one step per tile of a `width x height` image.
+fn tile_bar(width: u32, height: u32) -> anyhow::Result<ProgressBar> {
+    let bar = ProgressBar::new(tiles::tiles(width, height).len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}")
+            .context("progress bar template")?
+            .progress_chars("=> "),
+    );
+    Ok(bar)
+}
+
 /// Applies the command line's size, sampling and seed to the scene's settings. The size
 /// that results is held to the limits of scene files ([`check_image_size`]).
-fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
+/// `spp` is the square sample count of the Whitted tracer (`None` for the GI
+/// integrators, which take `--spp` as it is).
+fn apply_overrides(scene: &mut Scene, args: &Args, spp: Option<u32>) -> Result<(), BadInput> {
     let s = &mut scene.settings;
     let side = |flag: &'static str, given: Option<u32>, scene: u32| match given {
         Some(value) => ImageSide::Flag { flag, value },
@@ -337,7 +558,7 @@ fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
     )?;
     s.width = args.width.unwrap_or(s.width);
     s.height = args.height.unwrap_or(s.height);
-    if let Some(spp) = args.spp {
+    if let Some(spp) = spp {
         let n = (spp as f64).sqrt().round() as u32;
         if spp == 0 || n * n != spp || n > 16 {
             return Err(BadInput(format!(

@@ -2,8 +2,16 @@
 //!
 //! [`tiles::render`] is the entry point: it splits the image into tiles, traces camera
 //! quads through [`shade::Shader`] (the scalar reference) and writes a [`film::Film`].
+//! [`gi::render_gi`] renders with a global-illumination integrator instead: the path
+//! tracer ([`path`]) or the photon mapper ([`photon`]), over physically based materials
+//! ([`bsdf`]) and the scene's emitters ([`lights`]).
 
+pub mod bsdf;
 pub mod film;
+pub mod gi;
+pub mod lights;
+pub mod path;
+pub mod photon;
 pub mod sample;
 pub mod shade;
 pub mod shade_packet;

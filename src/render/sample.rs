@@ -97,6 +97,14 @@ pub fn sample_cone(axis: Vec3, cos_max: f32, r1: f32, r2: f32) -> Vec3 {
     Onb::from_w(axis).to_world(local).normalize()
 }
 
+/// A cosine-weighted direction around `+z` from two uniforms (Malley's method: a
+/// uniform point on the unit disc lifted onto the hemisphere); density `cos / pi`.
+pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
+    let r = u1.sqrt();
+    let phi = std::f32::consts::TAU * u2;
+    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
 /// Cells per side of the area-light grid.
 pub const STRATA: u32 = 4;
 

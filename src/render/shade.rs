@@ -315,13 +315,13 @@ fn is_glossy(m: &Material) -> bool {
 pub(super) struct Surface<'m> {
     pub(super) p: Vec3,
     /// Geometric normal, facing the incoming ray.
-    ng: Vec3,
+    pub(super) ng: Vec3,
     /// Shading normal, facing the incoming ray.
     pub(super) ns: Vec3,
     /// True when the ray hit the surface from its back (leaving a solid).
-    inside: bool,
-    material: &'m Material,
-    albedo: Vec3,
+    pub(super) inside: bool,
+    pub(super) material: &'m Material,
+    pub(super) albedo: Vec3,
 }
 
 impl<'a> Shader<'a> {

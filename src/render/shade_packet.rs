@@ -293,7 +293,7 @@ impl<'a> Shader<'a> {
 }
 
 /// Closest hits of at most one packet of `rays`, traced as a packet at `mode`'s width.
-fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_LANES] {
+pub(crate) fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_LANES] {
     fn at<W: PacketWidth>(accel: &dyn Accel, rays: &[Ray]) -> [Hit; MAX_LANES] {
         let p = accel.intersect_packet(&RayPacket::<W>::from_rays(rays));
         std::array::from_fn(|i| if i < W::LANES { p.lane(i) } else { Hit::MISS })

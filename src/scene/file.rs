@@ -765,6 +765,7 @@ impl<'a> Doc<'a> {
                 "glossiness",
                 "texture",
                 "uv_scale",
+                "emission",
             ],
         )?;
         let d = Material::default();
@@ -817,6 +818,7 @@ impl<'a> Doc<'a> {
             )?,
             texture,
             uv_scale,
+            emission: self.color(m, "emission", d.emission)?,
         })
     }
 
@@ -1033,6 +1035,7 @@ impl<'a> Doc<'a> {
                     ids.push(b.scene.materials.len() as u32);
                     b.scene.materials.push(Material {
                         color: m.diffuse,
+                        emission: m.emission,
                         texture,
                         ..Material::default()
                     });

@@ -29,6 +29,10 @@ pub struct Material {
     pub texture: Option<u32>,
     /// Texture coordinates are multiplied by this before lookup.
     pub uv_scale: Vec2,
+    /// Radiance emitted from the side the geometric normal faces (a triangle's winding
+    /// normal, a sphere's outside): one-sided and Lambertian. Only the global-illumination
+    /// integrators ([`crate::render::path`], [`crate::render::photon`]) read it.
+    pub emission: Vec3,
 }
 
 impl Default for Material {
@@ -45,6 +49,7 @@ impl Default for Material {
             glossiness: 0.0,
             texture: None,
             uv_scale: Vec2::ONE,
+            emission: Vec3::ZERO,
         }
     }
 }

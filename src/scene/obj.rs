@@ -66,6 +66,22 @@ pub struct ObjMaterial {
     pub diffuse: Vec3,
     /// `map_Kd`, resolved against the MTL file's folder; checked to exist.
     pub diffuse_texture: Option<PathBuf>,
+    /// Emitted radiance: `Ke`; without `Ke`, a `Ka` with a component above 1 (see
+    /// [`emission_of`]); otherwise zero.
+    pub emission: Vec3,
+}
+
+/// The emission rule of MTL materials: `Ke` when the material has it. Without `Ke`, an
+/// ambient `Ka` with a component above 1 is taken as emitted radiance: no reflectance
+/// exceeds 1, so such a `Ka` can only be the old convention of giving a light's radiance
+/// as its ambient colour (the Cornell box's `light` material, `Ka 20 20 20`). An ordinary
+/// ambient (`Ka 0 0 0`, `Ka 0.2 0.2 0.2`) emits nothing.
+pub fn emission_of(ke: Option<Vec3>, ka: Option<Vec3>) -> Vec3 {
+    match (ke, ka) {
+        (Some(ke), _) => ke.max(Vec3::ZERO),
+        (None, Some(ka)) if ka.max_element() > 1.0 => ka.max(Vec3::ZERO),
+        _ => Vec3::ZERO,
+    }
 }
 
 impl ObjMesh {
@@ -89,7 +105,8 @@ impl Scene {
     /// triangles (prim ids as in RAYS.md); the file's normals and texture coordinates
     /// where it has them, geometric normals where it has none (smoothing normals the
     /// author did not give would round off hard edges); one material per MTL material,
-    /// with its `Kd` colour and `map_Kd` texture, and the default grey for triangles
+    /// with its `Kd` colour, `map_Kd` texture and emission (see [`ObjMaterial::emission`]),
+    /// and the default grey for triangles
     /// before any `usemtl`; no lights (the caller places them); 1024x768, the size of
     /// RAYS.md's standard ray sets. Returns the mesh's warnings beside the scene.
     pub fn from_obj(path: &Path, camera: Camera) -> Result<(Scene, Vec<Warning>), ObjError> {
@@ -112,6 +129,7 @@ impl Scene {
             };
             materials.push(Material {
                 color: m.diffuse,
+                emission: m.emission,
                 texture,
                 ..Material::default()
             });
@@ -766,6 +784,8 @@ fn number(
 /// returns the materials with their diffuse colour and diffuse texture.
 fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
     let mut out: Vec<ObjMaterial> = Vec::new();
+    // `Ke` and `Ka` of each material, resolved into `emission` at the end.
+    let mut emitted: Vec<(Option<Vec3>, Option<Vec3>)> = Vec::new();
     let dir = path.parent().unwrap_or(Path::new(""));
     for (i, raw) in text.split(|&b| b == b'\n').enumerate() {
         let line_no = i + 1;
@@ -794,7 +814,9 @@ fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
                     name: rest.to_string(),
                     diffuse: Vec3::splat(0.8),
                     diffuse_texture: None,
+                    emission: Vec3::ZERO,
                 });
+                emitted.push((None, None));
             }
             "Ka" | "Kd" | "Ks" | "Ke" | "Tf" => {
                 let mut c = [0f32; 3];
@@ -803,11 +825,17 @@ fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
                         format!("needs 3 numbers, found {k}")
                     })?;
                 }
-                if element == "Kd" {
+                if matches!(element, "Kd" | "Ke" | "Ka") {
                     let Some(m) = current else {
                         return Err(malformed(element, "comes before any `newmtl`".into()));
                     };
-                    m.diffuse = Vec3::from_array(c);
+                    let c = Vec3::from_array(c);
+                    let e = emitted.last_mut().expect("one entry per material");
+                    match element {
+                        "Kd" => m.diffuse = c,
+                        "Ke" => e.0 = Some(c),
+                        _ => e.1 = Some(c),
+                    }
                 }
             }
             "Ns" | "Ni" | "d" | "Tr" => {
@@ -845,6 +873,9 @@ fn scan_mtl(path: &Path, text: &[u8]) -> Result<Vec<ObjMaterial>, ObjError> {
             }
             _ => {}
         }
+    }
+    for (m, (ke, ka)) in out.iter_mut().zip(emitted) {
+        m.emission = emission_of(ke, ka);
     }
     Ok(out)
 }
@@ -963,6 +994,27 @@ f -1 -2 -3
         assert_eq!(m.materials[0].diffuse, Vec3::X);
         assert_eq!(m.materials[0].diffuse_texture, None);
         assert_eq!(m.materials[1].diffuse_texture, Some(dir.join("t.png")));
+    }
+
+    #[test]
+    fn emission_is_ke_or_an_ambient_above_one() {
+        let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n";
+        let mtl = "newmtl lamp\nKa 20 20 20\nKd 1 1 1\n\
+                   newmtl glow\nKa 30 30 30\nKe 1 2 3\n\
+                   newmtl dim\nKa 0.2 0.2 0.2\n\
+                   newmtl plain\nKd 0.5 0.5 0.5\n";
+        let dir = folder("emission", &[("e.obj", obj), ("m.mtl", mtl)]);
+        let m = load(&dir.join("e.obj")).unwrap();
+        let emission: Vec<Vec3> = m.materials.iter().map(|m| m.emission).collect();
+        assert_eq!(
+            emission,
+            [
+                Vec3::splat(20.0),
+                Vec3::new(1.0, 2.0, 3.0),
+                Vec3::ZERO,
+                Vec3::ZERO
+            ]
+        );
     }
 
     #[test]

@@ -1,0 +1,358 @@
+//! render: the driver of the global-illumination integrators ([`super::path`],
+//! [`super::photon`]): tiles rendered in parallel, `spp` jittered camera samples per
+//! pixel, each estimated by an [`Integrator`] one ray at a time.
+//!
+//! Invariants: sample `k` of pixel `(x, y)` draws only from [`pixel_rng`]`(seed, x, y, k)`,
+//! so the image is the same for any number of threads and any tile order; ray counts are
+//! summed per tile in tile order.
+
+use super::bsdf::Bsdf;
+use super::film::Film;
+use super::lights::Lights;
+use super::sample::{Pcg32, pixel_rng};
+use super::shade::{Shader, transmission};
+use super::shade_packet::intersect_rays;
+use super::tiles::{Mode, tiles};
+use crate::accel::Accel;
+use crate::ray::{Hit, Ray};
+use crate::scene::{Material, Scene};
+use crate::simd::MAX_LANES;
+use glam::Vec3;
+use rayon::prelude::*;
+use std::ops::AddAssign;
+
+/// Rays traced by the global-illumination integrators, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GiCounts {
+    pub camera: u64,
+    /// Continuation rays of paths (BSDF samples after the camera ray).
+    pub bounce: u64,
+    /// Shadow rays of next-event estimation (any-hit).
+    pub shadow: u64,
+    /// Final-gather rays of the photon map, and their specular continuations.
+    pub gather: u64,
+    /// Rays traced while shooting photons.
+    pub photon: u64,
+    /// Packets the camera rays were traced in (0 in scalar mode); not in the total.
+    pub camera_packets: u64,
+}
+
+impl GiCounts {
+    pub fn total(&self) -> u64 {
+        self.camera + self.bounce + self.shadow + self.gather + self.photon
+    }
+}
+
+impl AddAssign for GiCounts {
+    fn add_assign(&mut self, o: GiCounts) {
+        self.camera += o.camera;
+        self.bounce += o.bounce;
+        self.shadow += o.shadow;
+        self.gather += o.gather;
+        self.photon += o.photon;
+        self.camera_packets += o.camera_packets;
+    }
+}
+
+/// An estimator of the radiance arriving along a camera ray.
+pub trait Integrator: Sync {
+    /// The scene it traces.
+    fn gi_scene(&self) -> &GiScene<'_>;
+
+    /// One sample of the radiance along camera ray `ray` (already counted) whose closest
+    /// hit `first` the caller has traced (in a packet, [`render_gi`]).
+    fn radiance_traced(
+        &self,
+        ray: &Ray,
+        first: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut GiCounts,
+    ) -> Vec3;
+
+    /// One sample of the radiance along camera ray `ray` (already counted).
+    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
+        let first = self.gi_scene().shader.accel.intersect(ray);
+        self.radiance_traced(ray, first, rng, counts)
+    }
+}
+
+/// What both integrators trace against: the scene, its accelerator, its emitters and
+/// the ray offset of the Whitted tracer ([`Shader::offset`]).
+pub struct GiScene<'a> {
+    pub shader: Shader<'a>,
+    pub lights: Lights,
+    /// Scattering events per path; `None` leaves paths to Russian roulette alone.
+    pub max_bounces: Option<u32>,
+}
+
+/// A hit prepared for the global-illumination integrators.
+pub struct GiHit<'a> {
+    pub hit: Hit,
+    pub p: Vec3,
+    /// Geometric normal on the side the ray came from.
+    pub n: Vec3,
+    /// True when the ray arrived on the side the normal points to (the emitting side).
+    pub front: bool,
+    pub material: &'a Material,
+    pub bsdf: Bsdf,
+    /// Offset of rays leaving `p` ([`Shader::offset`]).
+    pub epsilon: f32,
+}
+
+/// Where a path stands: the ray to trace next and the absorption of the medium it runs
+/// through (Beer's law, as in the Whitted tracer).
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    pub ray: Ray,
+    pub medium: Vec3,
+    /// The surface point the ray left (its origin before the offset): Beer's law counts
+    /// the distance from here, so the offset does not thin a medium.
+    pub from: Vec3,
+}
+
+impl Segment {
+    /// A ray starting in clear air (a camera ray, a photon leaving its light).
+    pub fn new(ray: Ray) -> Segment {
+        Segment {
+            ray,
+            medium: Vec3::ZERO,
+            from: ray.org,
+        }
+    }
+}
+
+impl<'a> GiScene<'a> {
+    /// `environment` is the radiance of rays that leave the scene.
+    pub fn new(
+        scene: &'a Scene,
+        accel: &'a dyn Accel,
+        environment: Vec3,
+        max_bounces: Option<u32>,
+    ) -> GiScene<'a> {
+        GiScene {
+            shader: Shader::new(scene, accel),
+            lights: Lights::new(scene, environment),
+            max_bounces,
+        }
+    }
+
+    pub fn scene(&self) -> &'a Scene {
+        self.shader.scene
+    }
+
+    /// Traces `seg`; `None` on a miss. `throughput` is multiplied by the medium's
+    /// transmission over the distance travelled (to zero for an absorbing medium that
+    /// never ends).
+    pub fn trace(&self, seg: &Segment, throughput: &mut Vec3) -> Option<GiHit<'a>> {
+        self.at_hit(seg, self.shader.accel.intersect(&seg.ray), throughput)
+    }
+
+    /// [`GiScene::trace`], or [`GiScene::at_hit`] when `known` holds the segment's
+    /// closest hit already (a camera ray traced in a packet).
+    pub fn trace_known(
+        &self,
+        seg: &Segment,
+        known: Option<Option<Hit>>,
+        throughput: &mut Vec3,
+    ) -> Option<GiHit<'a>> {
+        match known {
+            Some(hit) => self.at_hit(seg, hit, throughput),
+            None => self.trace(seg, throughput),
+        }
+    }
+
+    /// [`GiScene::trace`] for a segment whose closest hit `hit` is already known.
+    pub fn at_hit(
+        &self,
+        seg: &Segment,
+        hit: Option<Hit>,
+        throughput: &mut Vec3,
+    ) -> Option<GiHit<'a>> {
+        let Some(hit) = hit else {
+            *throughput *= transmission(seg.medium, f32::INFINITY);
+            return None;
+        };
+        let s = self.shader.surface(&seg.ray, &hit);
+        if seg.medium != Vec3::ZERO {
+            *throughput *= transmission(seg.medium, (s.p - seg.from).length());
+        }
+        Some(GiHit {
+            hit,
+            p: s.p,
+            n: s.ng,
+            front: !s.inside,
+            material: s.material,
+            bsdf: Bsdf::new(s.material, s.albedo, s.ng, !s.inside),
+            epsilon: self.shader.offset(seg.ray.org, s.p),
+        })
+    }
+
+    /// Radiance emitted by `h` toward where its ray came from (one-sided).
+    pub fn emitted(&self, h: &GiHit) -> Vec3 {
+        if h.front {
+            h.material.emission
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// The ray leaving `h` along `wi`, off the surface on the side it leaves to, with the
+    /// medium it enters: a transmitted ray entering a dielectric is inside it, one leaving
+    /// is back in clear air, a reflected ray stays where it was.
+    pub fn spawn(&self, h: &GiHit, wi: Vec3, transmitted: bool, medium: Vec3) -> Segment {
+        let side = if transmitted { -h.n } else { h.n };
+        let medium = match (transmitted, h.front) {
+            (true, true) => h.bsdf.absorption,
+            (true, false) => Vec3::ZERO,
+            (false, _) => medium,
+        };
+        Segment {
+            ray: Ray::new(h.p + side * h.epsilon, wi, 0.0, f32::INFINITY),
+            medium,
+            from: h.p,
+        }
+    }
+
+    /// Next-event estimation at `h` for outgoing `wo`: one light sample, its shadow ray,
+    /// `f cos Li / pdf` weighted by the power heuristic against BSDF sampling when `mis`
+    /// (the photon map takes light samples alone: `mis = false`). Draws three uniforms.
+    pub fn direct(
+        &self,
+        h: &GiHit,
+        wo: Vec3,
+        rng: &mut Pcg32,
+        mis: bool,
+        counts: &mut GiCounts,
+    ) -> Vec3 {
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        if !h.bsdf.has_smooth() {
+            return Vec3::ZERO;
+        }
+        let Some(ls) = self.lights.sample(h.p, u) else {
+            return Vec3::ZERO;
+        };
+        let f = h.bsdf.eval(wo, ls.wi) * ls.wi.dot(h.n).max(0.0);
+        if f == Vec3::ZERO || ls.pdf <= 0.0 {
+            return Vec3::ZERO;
+        }
+        // Aimed from the offset origin at the sampled point itself, stopping just short
+        // of it: the emitter's own surface must not count as a blocker.
+        let org = h.p + h.n * h.epsilon;
+        let to = ls.point - org;
+        let len = to.length();
+        if !(len > 0.0) {
+            return Vec3::ZERO;
+        }
+        let shadow = Ray::new(org, to / len, 0.0, len * (1.0 - 1e-4));
+        counts.shadow += 1;
+        if self.shader.accel.occluded(&shadow) {
+            return Vec3::ZERO;
+        }
+        let w = if mis && !ls.delta {
+            super::bsdf::power_heuristic(ls.pdf, h.bsdf.pdf(wo, ls.wi))
+        } else {
+            1.0
+        };
+        f * ls.li * (w / ls.pdf)
+    }
+}
+
+/// Russian roulette from the fourth vertex on: a path goes on with probability
+/// `min(0.95, max channel of throughput)` and is reweighted; draws one uniform always.
+pub fn survives(vertex: u32, throughput: &mut Vec3, rng: &mut Pcg32) -> bool {
+    let u = rng.next_f32();
+    if vertex < 3 {
+        return true;
+    }
+    let p = throughput.max_element().min(0.95);
+    if p <= 0.0 || u >= p {
+        return false;
+    }
+    *throughput /= p;
+    true
+}
+
+/// A rendered image with the rays it took.
+#[derive(Clone, Debug)]
+pub struct GiRendered {
+    pub film: Film,
+    pub counts: GiCounts,
+}
+
+/// Renders `spp` samples per pixel of `scene`'s camera at its settings' size through
+/// `integrator` on the current rayon pool; `progress` is called once per finished tile.
+/// In a packet mode the camera rays of a packet width of neighbouring pixels are traced as
+/// one packet; the hits, and so the image, are those of [`Mode::Scalar`], bit for bit.
+pub fn render_gi(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    spp: u32,
+    mode: Mode,
+    progress: &(dyn Fn() + Sync),
+) -> GiRendered {
+    let accel = integrator.gi_scene().shader.accel;
+    let (width, height) = (scene.settings.width, scene.settings.height);
+    let frame = scene.camera.frame(width, height);
+    let seed = scene.settings.seed;
+    let spp = spp.max(1);
+    let tiles = tiles(width, height);
+    let done: Vec<(Vec<Vec3>, GiCounts)> = tiles
+        .par_iter()
+        .map(|t| {
+            let mut counts = GiCounts::default();
+            let pixels: Vec<(u32, u32)> = (t.y0..t.y0 + t.height)
+                .flat_map(|y| (t.x0..t.x0 + t.width).map(move |x| (x, y)))
+                .collect();
+            let mut out = vec![Vec3::ZERO; pixels.len()];
+            // Groups of a packet width of pixels along the tile's rows; sample k of every
+            // pixel of a group forms one camera packet in a packet mode.
+            let packet = mode.group_mode();
+            let group_size = packet.packet_size();
+            for (g, group) in pixels.chunks(group_size).enumerate() {
+                let mut sums = [Vec3::ZERO; MAX_LANES];
+                for k in 0..spp {
+                    let mut rngs = Vec::with_capacity(group.len());
+                    let mut rays = Vec::with_capacity(group.len());
+                    for &(x, y) in group {
+                        let mut rng = pixel_rng(seed, x, y, k);
+                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                        rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
+                        rngs.push(rng);
+                    }
+                    let hits: Vec<Option<Hit>> = if packet == Mode::Scalar {
+                        rays.iter().map(|r| accel.intersect(r)).collect()
+                    } else {
+                        counts.camera_packets += 1;
+                        let h = intersect_rays(accel, packet, &rays);
+                        h[..rays.len()]
+                            .iter()
+                            .map(|hit| hit.is_hit().then_some(*hit))
+                            .collect()
+                    };
+                    for (i, (ray, rng)) in rays.iter().zip(&mut rngs).enumerate() {
+                        counts.camera += 1;
+                        let l = integrator.radiance_traced(ray, hits[i], rng, &mut counts);
+                        // A NaN or infinite sample would poison the pixel: drop it.
+                        if l.is_finite() {
+                            sums[i] += l;
+                        }
+                    }
+                }
+                for (i, sum) in sums.iter().take(group.len()).enumerate() {
+                    out[g * group_size + i] = *sum / spp as f32;
+                }
+            }
+            progress();
+            (out, counts)
+        })
+        .collect();
+    let mut film = Film::new(width, height);
+    let mut counts = GiCounts::default();
+    for (t, (pixels, c)) in tiles.iter().zip(done) {
+        counts += c;
+        for (i, px) in pixels.into_iter().enumerate() {
+            film.set(t.x0 + i as u32 % t.width, t.y0 + i as u32 / t.width, px);
+        }
+    }
+    GiRendered { film, counts }
+}

@@ -1,0 +1,267 @@
+//! Global illumination on the benchmark Cornell box (../shared/scenes): both integrators
+//! agree block by block within the noise this test measures, colour bleeds, and images
+//! do not depend on the thread count.
+
+mod common;
+
+use glam::Vec3;
+use raypack::accel::kdtree::KdTree;
+use raypack::render::Mode;
+use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
+use raypack::render::path::PathTracer;
+use raypack::render::photon::{PhotonMapper, PhotonSettings};
+use raypack::render::sample::pixel_rng;
+use raypack::scene::{Scene, obj};
+
+/// The Cornell box as `raypack render cornell_box` loads it ([`Scene::from_obj`], mapped
+/// as scenes/README.md says): the camera of cameras.toml, every MTL material Lambertian
+/// with albedo `Kd`, the `light` material emitting its `Ka` (20), no other light. `width x height` pixels.
+fn cornell(width: u32, height: u32) -> Scene {
+    let (_, camera) = common::shared_scene("cornell_box");
+    let path = common::shared_scenes().join("cornell_box/cornell_box.obj");
+    let (mut scene, _) = Scene::from_obj(&path, camera).expect("load the Cornell box");
+    assert!(
+        scene.lights.is_empty(),
+        "lit by its emissive material alone"
+    );
+    let mesh = obj::load(&path).expect("load the Cornell box materials");
+    scene.settings.width = width;
+    scene.settings.height = height;
+    let light = mesh.materials.iter().find(|m| m.name == "light").unwrap();
+    assert_eq!(light.emission, Vec3::splat(20.0), "the light's Ka 20 20 20");
+    scene
+}
+
+/// Per block of `block x block` pixels: sum and sum of squares of every sample, and the
+/// sample count. The samples of a block are independent given the photon map; pooled,
+/// their variance over-estimates that of the stratified block mean, so the standard
+/// error drawn from it is conservative.
+struct Blocks {
+    block: u32,
+    across: u32,
+    sum: Vec<[f64; 3]>,
+    sum2: Vec<[f64; 3]>,
+    n: Vec<f64>,
+}
+
+impl Blocks {
+    fn mean_se(&self, b: usize) -> ([f64; 3], [f64; 3]) {
+        let n = self.n[b];
+        let mean = self.sum[b].map(|s| s / n);
+        let se = std::array::from_fn(|c| {
+            ((self.sum2[b][c] / n - mean[c] * mean[c]).max(0.0) / (n - 1.0)).sqrt()
+        });
+        (mean, se)
+    }
+}
+
+fn render_blocks(scene: &Scene, integrator: &dyn Integrator, spp: u32, block: u32) -> Blocks {
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let frame = scene.camera.frame(w, h);
+    let across = w / block;
+    let count = (across * (h / block)) as usize;
+    let mut out = Blocks {
+        block,
+        across,
+        sum: vec![[0.0; 3]; count],
+        sum2: vec![[0.0; 3]; count],
+        n: vec![0.0; count],
+    };
+    let mut counts = GiCounts::default();
+    for y in 0..h / block * block {
+        for x in 0..across * block {
+            let b = ((y / block) * across + x / block) as usize;
+            for k in 0..spp {
+                let mut rng = pixel_rng(scene.settings.seed, x, y, k);
+                let ray = frame.ray(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
+                let l = integrator.radiance(&ray, &mut rng, &mut counts);
+                for c in 0..3 {
+                    out.sum[b][c] += l[c] as f64;
+                    out.sum2[b][c] += (l[c] as f64).powi(2);
+                }
+                out.n[b] += 1.0;
+            }
+        }
+    }
+    out
+}
+
+/// Path tracing (64 samples per pixel) and photon mapping (4 independent photon maps of
+/// 125,000 photons, each with 2 samples of 16 gather rays per pixel) of a 40 x 40 Cornell
+/// box, compared in 8 x 8 pixel blocks: every block and channel must agree within 4.5
+/// combined standard errors, and colour must bleed in both: the white floor near the red
+/// wall is redder than near the green wall.
+///
+/// The path tracer's standard error comes from its samples. The photon mapper's is the
+/// larger of the same (over all its samples) and the photon maps' own noise, which every
+/// sample of one map shares: the spread of the 4 maps' block means, pooled over all
+/// blocks and channels as a relative variance (75 blocks and channels, 3 degrees of
+/// freedom each).
+#[test]
+fn path_and_photon_block_averages_agree_on_the_cornell_box() {
+    let scene = cornell(40, 40);
+    let accel = KdTree::build(&scene.geometry);
+    let pt = PathTracer {
+        scene: GiScene::new(&scene, &accel, Vec3::ZERO, None),
+    };
+    let a = render_blocks(&scene, &pt, 64, 8);
+    let replicas: Vec<Blocks> = (0..4u64)
+        .map(|seed| {
+            let pm = PhotonMapper::new(
+                GiScene::new(&scene, &accel, Vec3::ZERO, None),
+                PhotonSettings {
+                    photons: 125_000,
+                    gather: 16,
+                    seed,
+                    ..PhotonSettings::default()
+                },
+            );
+            render_blocks(&scene, &pm, 2, 8)
+        })
+        .collect();
+    let r = replicas.len() as f64;
+    // All replicas' samples in one set of blocks, and the pooled relative variance of one
+    // replica's block mean.
+    let mut b = Blocks {
+        block: a.block,
+        across: a.across,
+        sum: vec![[0.0; 3]; a.n.len()],
+        sum2: vec![[0.0; 3]; a.n.len()],
+        n: vec![0.0; a.n.len()],
+    };
+    let (mut rel, mut dof) = (0.0, 0.0);
+    for blk in 0..a.n.len() {
+        let means: Vec<[f64; 3]> = replicas.iter().map(|x| x.mean_se(blk).0).collect();
+        for c in 0..3 {
+            let m = means.iter().map(|x| x[c]).sum::<f64>() / r;
+            if m > 0.01 {
+                rel += means.iter().map(|x| (x[c] / m - 1.0).powi(2)).sum::<f64>();
+                dof += r - 1.0;
+            }
+        }
+        for x in &replicas {
+            for c in 0..3 {
+                b.sum[blk][c] += x.sum[blk][c];
+                b.sum2[blk][c] += x.sum2[blk][c];
+            }
+            b.n[blk] += x.n[blk];
+        }
+    }
+    let map_rel_se = (rel / dof / r).sqrt();
+    eprintln!("photon maps' relative standard error per block: {map_rel_se:.4}");
+    let mut worst: f64 = 0.0;
+    for blk in 0..a.n.len() {
+        let (ma, sa) = a.mean_se(blk);
+        let (mb, sb) = b.mean_se(blk);
+        for c in 0..3 {
+            let sb = sb[c].max(map_rel_se * mb[c]);
+            let se = (sa[c] * sa[c] + sb * sb).sqrt();
+            let tol = 4.5 * se + 1e-4;
+            let z = (ma[c] - mb[c]).abs() / se.max(1e-12);
+            worst = worst.max(z);
+            assert!(
+                (ma[c] - mb[c]).abs() <= tol,
+                "block {blk} ({}, {}) channel {c}: path {:.4} +- {:.4}, photon {:.4} +- {:.4}",
+                blk as u32 % a.across * a.block,
+                blk as u32 / a.across * a.block,
+                ma[c],
+                sa[c],
+                mb[c],
+                sb
+            );
+        }
+    }
+    eprintln!("largest block difference: {worst:.2} standard errors");
+    for blocks in [&a, &b] {
+        // Bottom row of blocks: the floor; left block near the red wall, right near the
+        // green one. Red minus green flips between them.
+        let row = (blocks.n.len() as u32 / blocks.across - 1) * blocks.across;
+        let (left, _) = blocks.mean_se(row as usize + 1);
+        let (right, _) = blocks.mean_se((row + blocks.across - 2) as usize);
+        assert!(
+            left[0] - left[1] > right[0] - right[1],
+            "no colour bleeding: floor left {left:?}, right {right:?}"
+        );
+    }
+}
+
+/// The same image, bit for bit, on 1 and 3 threads and with camera rays traced in
+/// packets or one by one, for both integrators.
+#[test]
+fn gi_images_do_not_depend_on_the_thread_count() {
+    let scene = cornell(24, 20);
+    let accel = KdTree::build(&scene.geometry);
+    let render = |threads: usize, photon: bool, mode: Mode| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let gi = GiScene::new(&scene, &accel, Vec3::ZERO, None);
+            if photon {
+                let pm = PhotonMapper::new(
+                    gi,
+                    PhotonSettings {
+                        photons: 20_000,
+                        gather: 4,
+                        ..PhotonSettings::default()
+                    },
+                );
+                render_gi(&scene, &pm, 2, mode, &|| ())
+            } else {
+                render_gi(&scene, &PathTracer { scene: gi }, 5, mode, &|| ())
+            }
+        })
+    };
+    for photon in [false, true] {
+        let one = render(1, photon, Mode::native_packet());
+        let three = render(3, photon, Mode::native_packet());
+        let scalar = render(3, photon, Mode::Scalar);
+        let bits = |f: &raypack::render::Film| -> Vec<[u32; 3]> {
+            f.pixels
+                .iter()
+                .map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        assert_eq!(bits(&one.film), bits(&three.film), "photon: {photon}");
+        assert_eq!(one.counts, three.counts);
+        assert_eq!(
+            bits(&one.film),
+            bits(&scalar.film),
+            "packets, photon: {photon}"
+        );
+        assert_eq!(scalar.counts.camera_packets, 0);
+        assert_eq!(
+            (one.counts.camera, one.counts.total()),
+            (scalar.counts.camera, scalar.counts.total())
+        );
+        assert!(one.counts.camera_packets > 0);
+        // Every packet width gives the scalar image, bit for bit.
+        for mode in [Mode::Packet4, Mode::Packet8, Mode::Packet16, Mode::Tile64] {
+            let packed = render(3, photon, mode);
+            assert_eq!(
+                bits(&packed.film),
+                bits(&scalar.film),
+                "{mode}, photon: {photon}"
+            );
+        }
+        assert!(one.film.pixels.iter().any(|p| p.max_element() > 0.0));
+    }
+}
+
+/// The GI scene files of scenes/gi load from ../shared/scenes: the Cornell box lit by its
+/// emissive `light` alone, Sponza by a point sun and a sky.
+#[test]
+fn gi_scene_files_load() {
+    common::shared_scenes();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gi");
+    let cb = raypack::scene::file::load(&dir.join("cornell_box.toml")).unwrap();
+    assert!(cb.lights.is_empty());
+    assert_eq!(cb.geometry.triangles.len(), 36);
+    let emissive = (0..36).filter(|&t| cb.material(t).emission == Vec3::splat(20.0));
+    assert_eq!(emissive.count(), 2, "the light quad");
+    let sp = raypack::scene::file::load(&dir.join("sponza.toml")).unwrap();
+    assert_eq!(sp.geometry.triangles.len(), 262_267);
+    assert_eq!(sp.lights.len(), 1);
+    assert!(sp.settings.background.min_element() > 0.0);
+}
