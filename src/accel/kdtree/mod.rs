@@ -17,7 +17,7 @@ pub mod traverse_packet;
 
 use super::Prims;
 use crate::scene::Aabb;
-pub use build::{BuildParams, BuildStats};
+pub use build::{BuildParams, BuildStats, BuilderKind};
 use node::{AlignedNodes, KdNode};
 
 pub struct KdTree {
