@@ -19,6 +19,7 @@
 //!   outputs are concatenated in order, so the result is the serial one. Large subtrees
 //!   are built in parallel as in the sweep.
 
+use super::small::{SMALL, SmallNode};
 use super::sweep::SweepSpace;
 use super::{Builder, Out, PlaneCost, child_cells, tree_bounds};
 use crate::accel::Prims;
@@ -151,6 +152,12 @@ impl Builder<'_> {
         space: &mut Option<SweepSpace>,
     ) {
         let n = refs.len();
+        if n < SMALL {
+            let mut node = SmallNode::new();
+            refs.iter().for_each(|r| node.push(&r.bounds, r.prim));
+            self.build_small(cell, &node, depth, slot, out);
+            return;
+        }
         let plane = if n >= self.params.sweep_below as usize && depth < self.max_depth {
             self.binned_plane(&cell, &refs)
         } else {

@@ -21,6 +21,7 @@
 
 mod binned;
 pub mod clip;
+mod small;
 mod sweep;
 
 use super::KdTree;

@@ -17,7 +17,8 @@
 //!   once the buffers have their size.
 
 use super::binned::Ref;
-use super::{Builder, MAX_DEPTH, Out, PlaneCost, child_cells};
+use super::small::{SMALL, SmallNode};
+use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, child_cells};
 use crate::accel::kdtree::node::MAX_INDEX;
 use crate::scene::Aabb;
 
@@ -43,7 +44,7 @@ fn event(pos: f32, kind: u64, prim: u32) -> u64 {
     ((order_bits(pos + 0.0) as u64) << 32) | (kind << 30) | prim as u64
 }
 
-#[cfg(test)]
+#[inline]
 fn event_pos(e: u64) -> f32 {
     from_order_bits((e >> 32) as u32)
 }
@@ -224,6 +225,11 @@ impl Builder<'_> {
         scratch: &mut Scratch,
         levels: &mut [[Lists; 2]],
     ) {
+        if self.params.builder == BuilderKind::Fast && (task.prim_count as usize) < SMALL {
+            let node = small_node(&task, &mut scratch.side);
+            self.build_small(task.cell, &node, task.depth, slot, out);
+            return;
+        }
         let split = if task.prim_count == 0 || task.depth >= self.max_depth {
             None
         } else {
@@ -404,6 +410,30 @@ impl Builder<'_> {
         }
         (n_left, n_right)
     }
+}
+
+/// The references of `task` as a small node (in the order of their first events on x),
+/// their coordinates read back from the events; `slot` is scratch indexed by primitive.
+fn small_node(task: &Task, slot: &mut [u8]) -> SmallNode {
+    let mut node = SmallNode::new();
+    for &e in task.events[0] {
+        if event_kind(e) != END {
+            let prim = event_prim(e);
+            slot[prim as usize] = node.open(prim) as u8;
+        }
+    }
+    for (axis, events) in task.events.iter().enumerate() {
+        for &e in events.iter() {
+            let (kind, pos) = (event_kind(e), Some(event_pos(e)));
+            let i = slot[event_prim(e) as usize] as usize;
+            match kind {
+                START => node.set(i, axis, pos, None),
+                END => node.set(i, axis, None, pos),
+                _ => node.set(i, axis, pos, pos),
+            }
+        }
+    }
+    node
 }
 
 /// Writes into `kids` the events of `src` (one axis) whose primitives went left and
