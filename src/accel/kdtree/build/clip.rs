@@ -255,6 +255,35 @@ pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Op
     bounds
 }
 
+/// [`split_triangle`] for a triangle whose part in `cell` is known to lie in `part`:
+/// the triangle is cut by the split plane alone, and each side's bounds are met with
+/// `part` and the child's cell. The result contains the exact one (every point of the
+/// triangle in the child is in it), is a little looser where several faces of the cell
+/// cut the triangle, and costs a fraction of clipping to the cell first.
+pub fn split_triangle_within(
+    tri: [Vec3; 3],
+    part: &Aabb,
+    cell: &Aabb,
+    axis: usize,
+    pos: f32,
+) -> [Option<Aabb>; 2] {
+    let whole = triangle_bounds(&tri);
+    let scale = whole.min.abs().max(whole.max.abs());
+    let (left_cell, right_cell) = child_cells(cell, axis, pos);
+    let parts = Polygon::triangle(tri).split(axis, pos);
+    let mut bounds = [None; 2];
+    for ((b, side), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
+        let region = intersect_boxes(part, &child);
+        if region.is_empty() {
+            continue;
+        }
+        *b = side
+            .and_then(|p| p.bounds_in(scale, &region))
+            .or_else(|| overlap_fallback(tri, &whole, &region));
+    }
+    bounds
+}
+
 /// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over
 /// the box's three axes, the triangle's normal and the nine edge cross products.
 pub fn tri_box_overlap(centre: Vec3, half: Vec3, tri: [Vec3; 3]) -> bool {
@@ -311,5 +340,59 @@ mod tests {
         // Touching the cell at one corner still counts.
         let corner = Aabb::new(Vec3::new(4.0, -1.0, -1.0), Vec3::new(5.0, 0.0, 1.0));
         assert!(clip_triangle(tri, &corner).is_some());
+    }
+
+    #[test]
+    fn cutting_by_the_plane_alone_contains_the_exact_split() {
+        let mut rng = crate::scene::generate::Rng::new(7);
+        // Both results are widened by up to CLIP_SLACK of the coordinates (at most 1 here)
+        // around the true part, each from its own rounded corners: the loose bounds must
+        // hold the exact ones up to that widening.
+        let tol = 3.0 * CLIP_SLACK;
+        let contains_box = |outer: &Aabb, inner: &Aabb| {
+            (inner.min + tol).cmpge(outer.min).all() && (inner.max - tol).cmple(outer.max).all()
+        };
+        let mut straddlers = 0;
+        for _ in 0..20_000 {
+            let tri = [0; 3].map(|_| {
+                Vec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                )
+            });
+            let a = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let b = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let cell = Aabb::new(a.min(b), a.max(b));
+            let Some(part) = clip_triangle(tri, &cell) else {
+                continue;
+            };
+            let axis = (rng.next_u64() % 3) as usize;
+            let pos = rng.range(part.min[axis], part.max[axis]);
+            if !(pos > part.min[axis] && pos < part.max[axis]) {
+                continue;
+            }
+            straddlers += 1;
+            let exact = split_triangle(tri, &cell, axis, pos);
+            let within = split_triangle_within(tri, &part, &cell, axis, pos);
+            for (e, w) in exact.iter().zip(&within) {
+                if let Some(e) = e {
+                    let w = w.unwrap_or_else(|| panic!("{tri:?} {cell:?} {axis} {pos}: lost"));
+                    assert!(
+                        contains_box(&w, e),
+                        "{tri:?} {cell:?} {axis} {pos}: {w:?} {e:?}"
+                    );
+                }
+            }
+        }
+        assert!(straddlers > 5_000, "only {straddlers} straddlers");
     }
 }

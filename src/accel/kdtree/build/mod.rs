@@ -28,7 +28,7 @@ use super::KdTree;
 use super::node::{KdNode, MAX_INDEX};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry, PrimRef};
-use clip::{clip_triangle, intersect_boxes, split_triangle};
+use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
 use std::time::Instant;
 
 /// Which builder makes the tree.
@@ -364,6 +364,24 @@ impl Builder<'_> {
                 let (left, right) = child_cells(cell, axis, pos);
                 [self.clip(prim, &left), self.clip(prim, &right)]
             }
+        }
+    }
+
+    /// [`Builder::split_prim`] for a straddler whose part in `cell` has bounds `part`:
+    /// a triangle is cut by the plane alone ([`split_triangle_within`]).
+    fn split_within(
+        &self,
+        prim: u32,
+        part: &Aabb,
+        cell: &Aabb,
+        axis: usize,
+        pos: f32,
+    ) -> [Option<Aabb>; 2] {
+        match self.g.prim_ref(prim) {
+            PrimRef::Triangle(t) => {
+                split_triangle_within(self.g.triangle(t), part, cell, axis, pos)
+            }
+            _ => self.split_prim(prim, cell, axis, pos),
         }
     }
 }

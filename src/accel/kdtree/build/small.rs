@@ -10,7 +10,9 @@
 //! going to the lower axis, then the lower position, as in the sweep, so a small node
 //! splits exactly as the sweep would split it, without sorted lists to keep. The work
 //! grows as n^2 per node: past about 12 references the sweep is cheaper (perf/kdtree.md,
-//! "Fast build").
+//! "Fast build"). A straddling triangle is cut by the split plane alone and its sides
+//! met with its bounds in the cell ([`Builder::split_within`]): a little looser than
+//! clipping it to the cell first, and cheaper.
 
 use super::{Builder, Out, PlaneCost, child_cells};
 use crate::scene::Aabb;
@@ -149,7 +151,7 @@ impl Builder<'_> {
             } else if lo >= pos {
                 1
             } else {
-                let parts = self.split_prim(prim, &cell, axis, pos);
+                let parts = self.split_within(prim, &node.bounds(i), &cell, axis, pos);
                 for (kid, part) in kids.iter_mut().zip(parts) {
                     if let Some(b) = part {
                         kid.push(&b, prim);
