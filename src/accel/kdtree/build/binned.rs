@@ -86,22 +86,36 @@ impl Binner {
         }
     }
 
-    /// Counts `refs` into `bins`. Float-to-int casts saturate (a coordinate rounded below
-    /// the cell gives bin 0).
+    /// The bins of a reference's minimum and maximum on `axis`. Float-to-int casts
+    /// saturate (a coordinate rounded below the cell gives bin 0).
+    #[inline]
+    fn bins_of(&self, b: &Aabb, axis: usize) -> (usize, usize) {
+        let f_min = (b.min[axis] - self.lo[axis]) * self.scale[axis];
+        let f_max = (b.max[axis] - self.lo[axis]) * self.scale[axis];
+        let first = (f_min as usize).min(BINS - 1);
+        let last = (f_max.ceil() as usize)
+            .saturating_sub(1)
+            .clamp(first, BINS - 1);
+        (first, last)
+    }
+
+    /// Counts `refs` into `bins`.
     fn count(&self, refs: &[Ref], bins: &mut Bins) {
         for r in refs {
-            let f_min = (r.bounds.min - self.lo) * self.scale;
-            let f_max = (r.bounds.max - self.lo) * self.scale;
             for axis in 0..3 {
-                let first = (f_min[axis] as usize).min(BINS - 1);
-                let last = (f_max[axis].ceil() as usize)
-                    .saturating_sub(1)
-                    .clamp(first, BINS - 1);
+                let (first, last) = self.bins_of(&r.bounds, axis);
                 bins.starts[axis][first] += 1;
                 bins.ends[axis][last] += 1;
             }
         }
     }
+}
+
+/// The bin boundary a node's plane is refined around.
+struct Window {
+    binner: Binner,
+    axis: usize,
+    boundary: usize,
 }
 
 /// The references of the root: every bounded primitive that goes into the tree, in id
@@ -229,11 +243,80 @@ impl Builder<'_> {
                 let cost = pricing.cost(pricing.probabilities(pos), n_left, n_right);
                 if cost < best_cost {
                     best_cost = cost;
-                    best = Some((axis, pos));
+                    best = Some((axis, i, pos, pricing));
                 }
             }
         }
-        best
+        let (axis, i, pos, pricing) = best?;
+        let window = Window {
+            binner,
+            axis,
+            boundary: i,
+        };
+        Some((
+            axis,
+            self.refine(refs, &bins, &window, &pricing, pos, best_cost),
+        ))
+    }
+
+    /// The best plane near bin boundary `window.boundary` (cost `cost` by the bins):
+    /// the bounds of the references that start or end in the two bins around it are
+    /// priced exactly, as the sweep prices them, the references of the other bins
+    /// counted by their bins. Binning alone misses the planes that cut off empty space
+    /// tightly; on the tetra scene (4M triangles) that cost 15% in SAH. Ties go to the
+    /// lower position.
+    fn refine(
+        &self,
+        refs: &[Ref],
+        bins: &Bins,
+        window: &Window,
+        pricing: &PlaneCost,
+        pos: f32,
+        cost: f32,
+    ) -> f32 {
+        let Window {
+            binner,
+            axis,
+            boundary: i,
+        } = *window;
+        let near = (i - 1)..=i;
+        let base_left: u32 = bins.starts[axis][..i - 1].iter().sum();
+        let base_right: u32 = bins.ends[axis][i + 1..].iter().sum();
+        // Minima (planar references included), maxima of the others, planar positions.
+        let (mut mins, mut maxs, mut planars) = (Vec::new(), Vec::new(), Vec::new());
+        for r in refs {
+            let (first, last) = binner.bins_of(&r.bounds, axis);
+            let (a, b) = (r.bounds.min[axis] + 0.0, r.bounds.max[axis] + 0.0);
+            if near.contains(&first) {
+                mins.push(a);
+            }
+            if near.contains(&last) {
+                if a == b {
+                    planars.push(a)
+                } else {
+                    maxs.push(b)
+                }
+            }
+        }
+        for list in [&mut mins, &mut maxs, &mut planars] {
+            list.sort_unstable_by(f32::total_cmp);
+        }
+        let (mut best_pos, mut best_cost) = (pos, cost);
+        for &p in mins.iter().chain(&maxs).chain(&planars) {
+            if !(p > pricing.lo && p < pricing.hi) {
+                continue;
+            }
+            // A reference flat in the plane goes right (see `side`).
+            let n_left = base_left + mins.partition_point(|&m| m < p) as u32;
+            let n_right = base_right
+                + (maxs.len() - maxs.partition_point(|&m| m <= p)) as u32
+                + (planars.len() - planars.partition_point(|&m| m < p)) as u32;
+            let c = pricing.cost(pricing.probabilities(p), n_left, n_right);
+            if c < best_cost || (c == best_cost && p < best_pos) {
+                (best_pos, best_cost) = (p, c);
+            }
+        }
+        best_pos
     }
 
     /// The references of the children of `cell` split at `pos` on `axis`, in the order
