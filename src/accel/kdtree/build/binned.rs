@@ -178,7 +178,7 @@ impl Builder<'_> {
             None
         };
         let Some((axis, pos)) = plane else {
-            let space = space.get_or_insert_with(|| self.sweep_space());
+            let space = space.get_or_insert_with(|| self.take_space());
             self.sweep_refs(cell, &refs, depth, slot, out, space, false);
             return;
         };
@@ -192,7 +192,11 @@ impl Builder<'_> {
                 || self.build_binned(left_cell, left, depth + 1, first, out, space),
                 || {
                     let mut sub = Out::apart();
-                    self.build_binned(right_cell, right, depth + 1, 0, &mut sub, &mut None);
+                    let mut space = None;
+                    self.build_binned(right_cell, right, depth + 1, 0, &mut sub, &mut space);
+                    if let Some(space) = space {
+                        self.put_space(space);
+                    }
                     sub
                 },
             );

@@ -43,8 +43,7 @@ pub enum BuilderKind {
 }
 
 impl BuilderKind {
-    pub const NAMES: [&'static str; 2] = ["exact", "fast"];
-
+    /// The name `--builder` takes.
     pub fn name(self) -> &'static str {
         match self {
             BuilderKind::Exact => "exact",
@@ -89,6 +88,7 @@ pub struct BuildParams {
     pub parallel: bool,
     /// A node with at least this many primitives builds its two children in parallel.
     pub parallel_min_prims: u32,
+    /// Which builder makes the tree (both keep every other parameter's meaning).
     pub builder: BuilderKind,
     /// The fast builder hands a node with fewer primitives than this to the exact sweep
     /// (perf/kdtree.md, "Fast build", measures where binning stops paying).
@@ -196,6 +196,8 @@ struct Builder<'a> {
     max_depth: u32,
     /// Size of the classification scratch (one byte per bounded primitive).
     prim_total: usize,
+    /// Sweep buffers that subtrees built apart have given back.
+    spare: std::sync::Mutex<Vec<sweep::SweepSpace>>,
 }
 
 /// Figures about one build, for `raypack info` and perf/.
@@ -311,6 +313,7 @@ impl KdTree {
             params,
             max_depth,
             prim_total: bounded as usize,
+            spare: Default::default(),
         };
         let mut out = Out::apart();
         match params.builder {

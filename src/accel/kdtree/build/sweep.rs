@@ -139,8 +139,12 @@ fn new_levels() -> Levels {
 }
 
 /// One thread's buffers for sweeping subtrees: the subtree root's events, the per-depth
-/// lists and the scratch. The fast builder keeps one per thread for all the nodes it
-/// hands to the sweep, so they allocate nothing once the buffers have their size.
+/// lists and the scratch. A subtree built apart takes one from the build's spares
+/// ([`Builder::take_space`]) and gives it back, so the scratch (one byte per primitive
+/// of the scene) is allocated about once per thread, not once per parallel subtree (4M
+/// triangles: thousands of 4 MiB arrays), and nodes allocate nothing once the buffers
+/// have their size. Every node writes the scratch before reading it, so a reused space
+/// changes nothing.
 pub(super) struct SweepSpace {
     events: [Vec<u64>; 3],
     levels: Levels,
@@ -156,18 +160,27 @@ impl Builder<'_> {
         }
     }
 
-    pub(super) fn sweep_space(&self) -> SweepSpace {
-        SweepSpace {
+    /// A spare sweep space, or a new one.
+    pub(super) fn take_space(&self) -> SweepSpace {
+        let spare = self.spare.lock().map(|mut s| s.pop()).unwrap_or(None);
+        spare.unwrap_or_else(|| SweepSpace {
             events: Default::default(),
             levels: new_levels(),
             scratch: self.scratch(),
+        })
+    }
+
+    /// Gives a sweep space back for the next subtree built apart.
+    pub(super) fn put_space(&self, space: SweepSpace) {
+        if let Ok(mut spare) = self.spare.lock() {
+            spare.push(space);
         }
     }
 
     /// Builds the whole tree of `refs` (the bounded primitives in `cell`) with the sweep:
     /// the exact builder.
     pub(super) fn build_swept(&self, cell: Aabb, refs: &[Ref], out: &mut Out) {
-        let mut space = self.sweep_space();
+        let mut space = self.take_space();
         self.sweep_refs(cell, refs, 0, 0, out, &mut space, self.params.parallel);
     }
 
@@ -265,8 +278,12 @@ impl Builder<'_> {
                 || self.build_node(left, first, out, scratch, deeper),
                 || {
                     let mut sub = Out::apart();
+                    // The spare's scratch, but lists of its own: they would keep this
+                    // subtree's size in the spare after it is done.
+                    let mut space = self.take_space();
                     let mut levels = new_levels();
-                    self.build_node(right, 0, &mut sub, &mut self.scratch(), &mut levels);
+                    self.build_node(right, 0, &mut sub, &mut space.scratch, &mut levels);
+                    self.put_space(space);
                     sub
                 },
             );
