@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # How build time and rays per second grow with the primitive count: the sphereflake
 # (balls) and tetra generators from ~1K to ~4M primitives, one thread, primary and
-# diffuse sets, scalar and packet, with the fast and the exact builder. Writes perf/scaling/*.json and perf/scaling.png.
+# diffuse sets, scalar and packet, with the fast and the exact builder. Writes
+# perf/scaling/*.json and perf/scaling.png.
 # Usage: perf/scaling.sh [REPEAT]   (from the repository root)
 set -euo pipefail
 cd "$(dirname "$0")/.."
