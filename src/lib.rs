@@ -16,6 +16,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
+pub mod output;
 pub mod ray;
 pub mod rayset;
 pub mod render;

@@ -4,6 +4,8 @@
 //! order of [`crate::scene::Geometry`]: triangles (OBJ face order after fan
 //! triangulation, as in RAYS.md), then spheres, boxes and planes.
 
+#![warn(missing_docs)]
+
 use glam::Vec3;
 
 /// `prim` of a ray that hit nothing (RAYS.md's miss value).
@@ -12,13 +14,21 @@ pub const NO_HIT: u32 = u32::MAX;
 /// A ray segment: points `org + t * dir` for `t_min < t < t_max`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
+    /// Origin, the point at `t = 0`.
     pub org: Vec3,
+    /// Direction, not necessarily unit length: `t` is measured in multiples of it.
     pub dir: Vec3,
+    /// Exclusive lower bound of `t`; a positive value keeps secondary rays off the
+    /// surface they leave.
     pub t_min: f32,
+    /// Exclusive upper bound of `t`: the distance to a light for shadow rays, and the
+    /// closest hit so far while tracing.
     pub t_max: f32,
 }
 
 impl Ray {
+    /// The segment `org + t * dir`, `t_min < t < t_max`; nothing is checked (see
+    /// [`Ray::is_usable`]).
     pub fn new(org: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Self {
         Ray {
             org,
@@ -63,9 +73,13 @@ pub const DIR_MAX: f32 = (1u64 << 63) as f32 * 2.0;
 /// second and third vertex (zero for other primitives).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// Ray parameter of the hit point, in multiples of the ray's `dir`; `+inf` on a miss.
     pub t: f32,
+    /// Barycentric weight of the triangle's second vertex.
     pub u: f32,
+    /// Barycentric weight of the triangle's third vertex.
     pub v: f32,
+    /// Primitive id in [`crate::scene::Geometry`] order, or [`NO_HIT`].
     pub prim: u32,
 }
 

@@ -590,14 +590,95 @@ fn texture_err(name: &str) -> (TextureError, String) {
     }
 }
 
-#[test]
-fn corrupt_textures_name_the_file() {
-    for name in ["corrupt.png", "empty.png", "text.jpg", "truncated.png"] {
-        let (e, _) = texture_err(name);
-        assert!(matches!(e, TextureError::Decode { .. }), "{name}: {e:?}");
+/// Each error of `e`'s chain leaves its cause to the next, and the chain names `file`
+/// once.
+fn assert_says_once(e: &(dyn Error + 'static), file: &str) {
+    let mut error: &dyn Error = e;
+    while let Some(cause) = error.source() {
+        let (msg, cause_msg) = (error.to_string(), cause.to_string());
+        assert!(
+            !msg.contains(&cause_msg),
+            "`{msg}` repeats its cause `{cause_msg}`"
+        );
+        error = cause;
     }
-    let (e, _) = texture_err("no_such_texture.png");
-    assert!(matches!(e, TextureError::Io { .. }));
+    let msg = chain(e);
+    assert_eq!(
+        msg.matches(file).count(),
+        1,
+        "`{msg}` names {file} more than once"
+    );
+}
+
+macro_rules! texture_case {
+    ($test:ident, $file:literal, $pat:pat, $want:literal) => {
+        #[test]
+        fn $test() {
+            let (e, msg) = texture_err($file);
+            assert!(matches!(e, $pat), "{}: unexpected variant: {e:?}", $file);
+            assert!(msg.contains($want), "`{msg}` lacks `{}`", $want);
+            assert_says_once(&e, $file);
+        }
+    };
+}
+
+texture_case!(
+    corrupt_png,
+    "corrupt.png",
+    TextureError::Decode { format: "PNG", .. },
+    "corrupt.png: cannot decode PNG texture: "
+);
+texture_case!(
+    truncated_png,
+    "truncated.png",
+    TextureError::Decode { format: "PNG", .. },
+    "truncated.png: cannot decode PNG texture: unexpected end of file"
+);
+texture_case!(
+    empty_texture,
+    "empty.png",
+    TextureError::Empty { .. },
+    "empty.png: texture file is empty"
+);
+texture_case!(
+    text_named_jpg,
+    "text.jpg",
+    TextureError::NotAnImage { .. },
+    "text.jpg: text (`this is not a jpeg`), not a PNG, JPEG or TGA image"
+);
+texture_case!(
+    pdf_named_png,
+    "document.png",
+    TextureError::NotAnImage { .. },
+    "document.png: a PDF document, not a PNG, JPEG or TGA image"
+);
+texture_case!(
+    gif_named_png,
+    "gif_named.png",
+    TextureError::Unsupported { format: "GIF", .. },
+    "gif_named.png: GIF image; textures must be PNG, JPEG or TGA"
+);
+texture_case!(
+    missing_texture,
+    "no_such_texture.png",
+    TextureError::Io { .. },
+    "no_such_texture.png: cannot read texture: "
+);
+
+/// Through a scene file: the scene's place, then the texture's file and fault, each once.
+#[test]
+fn texture_errors_in_scenes_say_each_thing_once() {
+    for (scene, texture) in [
+        ("corrupt_image.toml", "corrupt.png"),
+        ("missing_image.toml", "no_such_image.png"),
+        ("mesh_corrupt_texture.toml", "truncated.png"),
+    ] {
+        let (e, msg) = scene_err(scene);
+        assert!(matches!(e, SceneError::Texture { .. }), "{scene}: {e:?}");
+        assert_says_once(&e, scene);
+        assert_says_once(&e, texture);
+        assert_eq!(msg.matches(" texture:").count(), 1, "{msg}");
+    }
 }
 
 /// Hostile text that is not in the corpus: none of it may panic.
@@ -756,7 +837,7 @@ fn cli_exits_2_naming_the_place() {
         ("scene/bad_mesh.toml", "zero_index.obj:4: f: index 0"),
         (
             "scene/corrupt_image.toml",
-            "corrupt.png: cannot decode texture",
+            "/texture/corrupt.png: cannot decode PNG texture: ",
         ),
         (
             "scene/no_such_scene.toml",
@@ -808,11 +889,11 @@ scene_case!(
 );
 scene_case!(texture_is_a_folder, "texture_is_folder.toml",
     SceneError::Texture { ref source, .. }
-        if matches!(**source, TextureError::Io { .. } | TextureError::Decode { .. }),
+        if matches!(**source, TextureError::Io { .. }),
     7, ["textures.wood.file", "texture"]);
 scene_case!(mtl_texture_corrupt_names_the_texture, "mesh_corrupt_texture.toml",
     SceneError::Texture { ref source, .. } if matches!(**source, TextureError::Decode { .. }),
-    6, ["meshes[0].file", "truncated.png: cannot decode texture"]);
+    6, ["meshes[0].file: ", "truncated.png: cannot decode PNG texture"]);
 
 /// The CLI's whole message for `args`: exit code 2, one line `raypack: ` followed by the
 /// library's error chain, no panic, no image.
@@ -895,6 +976,54 @@ fn every_corpus_file_has_a_case() {
         assert!(in_case || used, "tests/data/bad/{kind}/{name} has no case");
     }
 }
+scene_case!(
+    rotate_both_forms,
+    "rotate_both_forms.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate", "not both"]
+);
+scene_case!(
+    rotate_zero_axis,
+    "rotate_zero_axis.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate_axis", "the axis is zero"]
+);
+scene_case!(
+    rotate_wrong_length,
+    "rotate_wrong_length.toml",
+    SceneError::Invalid { .. },
+    7,
+    ["meshes[0].rotate", "array of 3 numbers"]
+);
+scene_case!(
+    rotate_nan_angle,
+    "rotate_nan_angle.toml",
+    SceneError::Invalid { .. },
+    8,
+    ["meshes[0].rotate_angle", "not a finite number"]
+);
+scene_case!(
+    rotate_angle_without_axis,
+    "rotate_angle_without_axis.toml",
+    SceneError::Invalid { .. },
+    7,
+    [
+        "meshes[0].rotate_axis",
+        "`rotate_angle` needs `rotate_axis`"
+    ]
+);
+scene_case!(
+    rotate_axis_without_angle,
+    "rotate_axis_without_angle.toml",
+    SceneError::Invalid { .. },
+    5,
+    [
+        "meshes[0].rotate_angle",
+        "`rotate_axis` needs `rotate_angle`"
+    ]
+);
 scene_case!(
     deep_dotted_key_names_its_line,
     "deep_dotted_key.toml",

@@ -48,7 +48,7 @@ fn s(p: &Path) -> &str {
 
 const SCENE: &str = "spd:tetra:3";
 
-/// `raypack rays SCENE --set SET --out PATH --width W --height H`, which must succeed.
+/// `raypack rays SCENE --set SET -o PATH --width W --height H`, which must succeed.
 fn write_set(set: &str, path: &Path, width: u32, height: u32) {
     let (w, h) = (width.to_string(), height.to_string());
     ok(&raypack(&[
@@ -56,7 +56,7 @@ fn write_set(set: &str, path: &Path, width: u32, height: u32) {
         SCENE,
         "--set",
         set,
-        "--out",
+        "-o",
         s(path),
         "--width",
         &w,
@@ -90,7 +90,7 @@ fn trace_writes_the_hits_of_the_in_process_scalar_path() {
                 SCENE,
                 "--rays",
                 s(&rays_path),
-                "--out",
+                "-o",
                 s(&hits_path),
                 "--mode",
                 mode,
@@ -202,7 +202,7 @@ fn bad_ray_files_are_reported_with_file_and_field() {
         (&truncated, "truncated: record 255 field `dy`"),
     ] {
         let out_path = dir.join("out.hits");
-        let out = raypack(&["trace", SCENE, "--rays", s(path), "--out", s(&out_path)]);
+        let out = raypack(&["trace", SCENE, "--rays", s(path), "-o", s(&out_path)]);
         assert_eq!(out.status.code(), Some(2));
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(s(path)) && err.contains(expect), "{err}");
@@ -222,7 +222,7 @@ fn bad_ray_files_are_reported_with_file_and_field() {
         SCENE,
         "--rays",
         s(&dir.join("missing.rays")),
-        "--out",
+        "-o",
         s(&dir.join("o.hits")),
     ]);
     assert_eq!(out.status.code(), Some(2));
@@ -251,7 +251,7 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("median") && !stdout.contains("differs"),
+        stdout.contains("Mrays/s") && !stdout.contains("differs"),
         "{stdout}"
     );
     let v: serde_json::Value =
@@ -305,7 +305,7 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     ok(&raypack(&[
         "rays",
         "spd:balls:2",
-        "--out",
+        "-o",
         s(&primary),
         "--width",
         "32",
@@ -445,14 +445,14 @@ fn failing_to_write_an_output_exits_1_naming_the_os_error_once() {
     let out_in = |name: &str| missing.join(name).to_str().unwrap().to_string();
     let size = ["--width", "16", "--height", "16"];
 
-    let mut args = vec!["rays", SCENE, "--out"];
+    let mut args = vec!["rays", SCENE, "-o"];
     let target = out_in("x.rays");
     args.push(&target);
     args.extend(size);
     fails_with(&raypack(&args), 1, "x.rays: cannot write");
 
     let target = out_in("x.hits");
-    let mut args = vec!["rays", SCENE, "--out", s(&rays), "--hits", &target];
+    let mut args = vec!["rays", SCENE, "-o", s(&rays), "--hits", &target];
     args.extend(size);
     fails_with(&raypack(&args), 1, "x.hits: cannot write");
 
@@ -465,7 +465,7 @@ fn failing_to_write_an_output_exits_1_naming_the_os_error_once() {
 
     let target = out_in("x.hits");
     fails_with(
-        &raypack(&["trace", SCENE, "--rays", s(&rays), "--out", &target]),
+        &raypack(&["trace", SCENE, "--rays", s(&rays), "-o", &target]),
         1,
         "x.hits: cannot write",
     );
@@ -492,7 +492,7 @@ fn failing_to_write_an_output_exits_1_naming_the_os_error_once() {
             SCENE,
             "--rays",
             &out_in("in.rays"),
-            "--out",
+            "-o",
             s(&target),
         ]),
         2,
@@ -537,13 +537,13 @@ fn image_sizes_past_the_scene_file_limit_are_bad_input() {
                 "16384",
                 "--height",
                 "16384",
-                "--out",
+                "-o",
                 s(&rays),
             ],
             "--width 16384 and --height 16384 make 268435456 pixels, more than the limit of 67108864",
         ),
         (
-            vec!["rays", "spd:tetra:2", "--height", "0", "--out", s(&rays)],
+            vec!["rays", "spd:tetra:2", "--height", "0", "-o", s(&rays)],
             "--height 0 must be between 1 and 16384",
         ),
     ] {

@@ -2,24 +2,14 @@
 //! and is not blank, PFM output matches PNG output, the same seed gives the same image on
 //! any thread count, and bad arguments exit with 2.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn raypack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raypack"))
-        .args(args)
-        .output()
-        .expect("run the raypack binary")
-}
+use common::cli::{check, raypack, s, scratch};
+
+use std::path::PathBuf;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("raypack-cli-render-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn shipped_scenes() -> Vec<PathBuf> {
@@ -32,20 +22,6 @@ fn shipped_scenes() -> Vec<PathBuf> {
     scenes.sort();
     assert!(!scenes.is_empty(), "no scene files in {}", dir.display());
     scenes
-}
-
-fn check(out: &Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what}: exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 #[test]
@@ -103,7 +79,7 @@ fn pfm_output_matches_png_and_threads_do_not_change_it() {
     assert!(one == two, "1 and 2 threads wrote different PFM files");
     let film = raypack::render::Film::read_pfm(&outputs[0]).unwrap();
     let png = image::open(&outputs[2]).unwrap().to_rgb8();
-    assert_eq!(png.as_raw(), &film.to_srgb8());
+    assert_eq!(png.as_raw(), &film.to_srgb8(0.0));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -118,7 +94,11 @@ fn bad_arguments_exit_with_2_and_write_nothing() {
         (vec!["--height", "100000"], "--height"),
         (vec!["--spp", "3"], "--spp"),
         (vec!["--spp", "0"], "--spp"),
-        (vec!["--threads", "0"], "--threads"),
+        (vec!["--threads", "many"], "--threads"),
+        (vec!["--vfov", "180"], "--vfov"),
+        (vec!["--eye", "1,2"], "--eye"),
+        (vec!["--up", "0,nan,0"], "--up"),
+        (vec!["--half"], "--half"),
         (vec!["--seed", "minus-one"], "--seed"),
     ];
     for (extra, needle) in cases {
@@ -129,32 +109,49 @@ fn bad_arguments_exit_with_2_and_write_nothing() {
         assert_eq!(out.status.code(), Some(2), "{extra:?}: {stderr}");
         assert!(stderr.contains(needle), "{extra:?}: {stderr}");
     }
+    // Tone mapping belongs to PNG: a PFM or EXR keeps linear radiance.
+    for name in ["x.pfm", "x.exr"] {
+        let out = raypack(&[
+            "render",
+            s(&scene),
+            "-o",
+            s(&dir.join(name)),
+            "--exposure",
+            "1",
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
+        assert!(stderr.contains("--exposure applies to PNG"), "{stderr}");
+    }
     let out = raypack(&["render", s(&missing), "-o", s(&png)]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("no-such-scene.toml"), "{stderr}");
     assert!(!png.exists());
-    // An output directory that does not exist is not bad input but a failed write.
+    // An output folder that does not exist, or an output that is a folder, is not bad
+    // input but a failed write; both are found before the scene is even loaded.
     let nowhere = dir.join("missing").join("x.png");
-    let out = raypack(&[
-        "render",
-        s(&scene),
-        "-o",
-        s(&nowhere),
-        "--width",
-        "8",
-        "--height",
-        "8",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("x.png: cannot write the image"), "{stderr}");
-    // The chain names the OS error once, not once per layer.
-    assert_eq!(
-        stderr.matches("No such file or directory").count(),
-        1,
-        "{stderr}"
-    );
+    let folder = dir.join("folder.png");
+    std::fs::create_dir(&folder).unwrap();
+    for (target, os_error) in [
+        (&nowhere, "No such file or directory"),
+        (&folder, "is a directory"),
+    ] {
+        let out = raypack(&["render", s(&scene), "-o", s(target)]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("-o {}: cannot write there", s(target))),
+            "{stderr}"
+        );
+        // The chain names the OS error once, not once per layer.
+        assert_eq!(stderr.matches(os_error).count(), 1, "{stderr}");
+        assert!(
+            out.stdout.is_empty(),
+            "rendered before finding the bad output"
+        );
+    }
+    std::fs::remove_dir(&folder).unwrap();
     assert!(
         std::fs::read_dir(&dir).unwrap().next().is_none(),
         "files left behind"
@@ -196,11 +193,11 @@ fn size_overrides_are_held_to_the_scene_file_pixel_limit() {
 }
 
 #[test]
-fn output_names_other_than_png_and_pfm_are_refused_before_rendering() {
+fn output_names_other_than_png_pfm_and_exr_are_refused_before_rendering() {
     let dir = scratch("ext");
     let scene = shipped_scenes().pop().unwrap();
     let size = ["--width", "8", "--height", "8"];
-    for name in ["x.exr", "x.jpg", "x.JPEG", "x.png.tmp", "x"] {
+    for name in ["x.tif", "x.jpg", "x.JPEG", "x.png.tmp", "x"] {
         let path = dir.join(name);
         let mut args = vec!["render", s(&scene), "-o", s(&path)];
         args.extend(size);
@@ -208,15 +205,19 @@ fn output_names_other_than_png_and_pfm_are_refused_before_rendering() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
         assert!(
-            stderr.contains(name) && stderr.contains(".png or .pfm"),
+            stderr.contains(name) && stderr.contains(".png, .pfm or .exr"),
             "{name}: {stderr}"
         );
         // Refused before the render: no summary, no file.
         assert!(out.stdout.is_empty(), "{name}: rendered anyway");
         assert!(!path.exists(), "{name}: written anyway");
     }
-    // Either case of the two known extensions is accepted, and gives that format.
-    for (name, magic) in [("x.PNG", &b"\x89PNG"[..]), ("x.Pfm", &b"PF\n"[..])] {
+    // Either case of the known extensions is accepted, and gives that format.
+    for (name, magic) in [
+        ("x.PNG", &b"\x89PNG"[..]),
+        ("x.Pfm", &b"PF\n"[..]),
+        ("x.eXr", &b"\x76\x2f\x31\x01"[..]),
+    ] {
         let path = dir.join(name);
         let mut args = vec!["render", s(&scene), "-o", s(&path)];
         args.extend(size);

@@ -102,17 +102,29 @@ fn cornell_box_loads_with_its_materials() {
 }
 
 #[test]
-fn scene_from_obj_gives_one_grey_material_and_a_light() {
+fn scene_from_obj_maps_mtl_colours_and_keeps_geometric_normals() {
     let cam = Camera {
         eye: Vec3::new(278.0, 273.0, -800.0),
         target: Vec3::new(278.0, 273.0, -799.0),
         up: Vec3::Y,
         vfov_deg: 39.3077,
     };
-    let s = Scene::from_obj(&shared("cornell_box/cornell_box.obj"), cam.clone()).unwrap();
+    let path = shared("cornell_box/cornell_box.obj");
+    let (s, warnings) = Scene::from_obj(&path, cam.clone()).unwrap();
+    let mesh = raypack::scene::obj::load(&path).unwrap();
+    assert!(warnings.is_empty());
     assert_eq!(s.geometry.triangles.len(), 36);
     assert_eq!(s.prim_material.len(), 36);
-    assert_eq!(s.materials.len(), 1);
-    assert_eq!(s.lights.len(), 1);
+    // One material per MTL material, plus the grey of triangles before any `usemtl`.
+    assert_eq!(s.materials.len(), mesh.materials.len() + 1);
+    for (tri, m) in mesh.tri_material.iter().enumerate() {
+        let want = m.map_or(Vec3::splat(0.8), |k| mesh.materials[k as usize].diffuse);
+        assert_eq!(s.material(tri as u32).color, want, "triangle {tri}");
+    }
+    assert!(
+        s.normals.is_empty(),
+        "the file has no normals: shade with geometric ones"
+    );
+    assert!(s.lights.is_empty());
     assert_eq!(s.camera, cam);
 }

@@ -1,7 +1,9 @@
 //! Every scene in scenes/ loads, and the committed mesh is the generator's output.
 
+use raypack::accel::brute::BruteForce;
+use raypack::render::{Mode, render};
 use raypack::scene::{AntiAlias, Light, file, obj};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn scenes_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -73,6 +75,37 @@ fn tutorial_scenes_have_their_features() {
     let p7 = load("part7.toml");
     assert_eq!(p7.geometry.triangles.len(), 1536);
     assert!(!p7.geometry.spheres.is_empty());
+}
+
+/// scenes/README.md, "Handedness": with the tutorial's camera (at z = -5 looking down +z,
+/// y up) screen-right is world -x, so a sphere at negative x lands in the right half of
+/// the image and one at positive x in the left half.
+#[test]
+fn world_minus_x_is_screen_right_with_the_tutorial_camera() {
+    for (x, right_side) in [(-2.5, true), (2.5, false)] {
+        let text = format!(
+            "[camera]\neye = [0.0, 0.0, -5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov = 61.9275\n\
+             [render]\nwidth = 80\nheight = 60\n\
+             [[spheres]]\ncenter = [{x:?}, 0.0, 3.0]\nradius = 1.0\n\
+             [[lights]]\nkind = \"point\"\nposition = [0.0, 0.0, -5.0]\ncolor = [1.0, 1.0, 1.0]\n"
+        );
+        let scene =
+            file::parse(Path::new("handedness.toml"), &text).unwrap_or_else(|e| panic!("{e}"));
+        let accel = BruteForce::new(&scene.geometry);
+        let film = render(&scene, &accel, Mode::Scalar, &|| {}).film;
+        let half = |right: bool| -> f32 {
+            (0..film.height)
+                .flat_map(|y| (0..film.width).map(move |x| (x, y)))
+                .filter(|&(px, _)| (px >= film.width / 2) == right)
+                .map(|(px, py)| film.get(px, py).element_sum())
+                .sum()
+        };
+        let (lit, dark) = (half(right_side), half(!right_side));
+        assert!(
+            lit > 0.0 && dark == 0.0,
+            "sphere at x = {x}: lit {lit}, other half {dark}"
+        );
+    }
 }
 
 /// scenes/knot.obj is generated, not drawn by hand: it must equal the generator's output.

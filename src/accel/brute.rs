@@ -5,12 +5,14 @@ use super::{Accel, Prims};
 use crate::ray::{Hit, Ray};
 use crate::scene::{Aabb, Geometry};
 
+/// Tests every primitive for every ray: the accelerator the kd-tree must agree with.
 pub struct BruteForce {
     prims: Prims,
     bounds: Aabb,
 }
 
 impl BruteForce {
+    /// The oracle over `g`'s primitives (no build: it keeps the records only).
     pub fn new(g: &Geometry) -> Self {
         BruteForce {
             prims: Prims::new(g),

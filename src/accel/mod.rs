@@ -62,11 +62,15 @@ pub trait Accel: Sync {
 /// (indexed by primitive id) and the unbounded planes, tested beside any tree.
 #[derive(Clone, Debug, Default)]
 pub struct Prims {
+    /// The triangles' precomputed records, by triangle id.
     pub tris: Vec<TriAccel>,
     /// Each triangle's corners, read only when the exact edge rule decides a test.
     pub corners: Vec<[Vec3; 3]>,
+    /// Spheres; sphere `i` has primitive id `sphere_base + i`.
     pub spheres: Vec<Sphere>,
+    /// Axis-aligned boxes; box `i` has primitive id `box_base + i`.
     pub boxes: Vec<Aabb>,
+    /// Unbounded planes, tested beside the tree; plane `i` has id `plane_base + i`.
     pub planes: Vec<Plane>,
     /// Id of the first sphere (= triangle count).
     pub sphere_base: u32,
@@ -77,6 +81,7 @@ pub struct Prims {
 }
 
 impl Prims {
+    /// The records of `g`'s primitives, ids in `g`'s order (RAYS.md's for triangles).
     pub fn new(g: &Geometry) -> Prims {
         let sphere_base = g.triangles.len() as u32;
         let box_base = sphere_base + g.spheres.len() as u32;

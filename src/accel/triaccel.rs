@@ -110,19 +110,28 @@ pub fn exact_rule(ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f3
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriAccel {
+    /// Normal's `u` component over its `k` component.
     pub n_u: f32,
+    /// Normal's `v` component over its `k` component.
     pub n_v: f32,
+    /// Plane offset over the normal's `k` component: `dot(n, v0) / n_k`.
     pub n_d: f32,
     /// Projection axis: the largest component of the normal.
     pub k: u32,
+    /// `u`'s gradient along the projected `u` axis.
     pub b_nu: f32,
+    /// `u`'s gradient along the projected `v` axis.
     pub b_nv: f32,
+    /// `u`'s constant term.
     pub b_d: f32,
     /// `eps * beta`: the edge bound's scale, with `beta = |b_nu| + |b_nv| + |c_nu| +
     /// |c_nv|` bounding the gradient of `u`, `v` and `1 - u - v` (Wald's padding word).
     pub err: f32,
+    /// `v`'s gradient along the projected `u` axis.
     pub c_nu: f32,
+    /// `v`'s gradient along the projected `v` axis.
     pub c_nv: f32,
+    /// `v`'s constant term.
     pub c_d: f32,
     /// The largest corner coordinate, raised to cover the stored coefficients' own
     /// rounding (Wald's second padding word).

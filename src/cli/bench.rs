@@ -54,10 +54,11 @@ pub struct Args {
     /// Ray sets to trace (primary, shadow, diffuse).
     #[arg(long, value_delimiter = ',', default_value = "primary,shadow,diffuse")]
     pub sets: Vec<String>,
-    /// Modes: scalar (one ray at a time), packet (4 consecutive rays).
+    /// Modes: scalar (one ray at a time), packet (4 consecutive rays). Rates are
+    /// Mrays/s.
     #[arg(long, value_delimiter = ',', default_value = "scalar,packet")]
     pub modes: Vec<Mode>,
-    /// Thread counts (default: 1 and every core).
+    /// Thread counts (default: 1 and every core; 0 means every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
     /// Timed passes per measurement (after one warm-up pass).
@@ -190,6 +191,13 @@ pub fn load_average() -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+/// True when the 1-minute load average left after the passes is more than raypack's own
+/// threads account for by over 0.5 per core: other processes then ran during the timed
+/// passes and took cycles from them.
+pub fn machine_was_busy(load: f64, threads: usize, cores: usize) -> bool {
+    load - threads as f64 > 0.5 * cores as f64
+}
+
 /// A rayon pool of `threads` threads, thread `i` pinned to core `i % cores`.
 fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
     let cores = core_affinity::get_core_ids().unwrap_or_default();
@@ -250,16 +258,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.repeat == 0 {
         return Err(BadInput("--repeat must be at least 1".into()).into());
     }
+    super::check_outputs([("--json", args.json.as_ref())])?;
     let machine = machine();
-    let mut threads = if args.threads.is_empty() {
+    let mut threads: Vec<usize> = if args.threads.is_empty() {
         vec![1, machine.cores]
     } else {
-        args.threads.clone()
+        args.threads
+            .iter()
+            .map(|&t| super::thread_count(t))
+            .collect()
     };
     threads.dedup();
-    if threads.contains(&0) {
-        return Err(BadInput("--threads: thread counts must be at least 1".into()).into());
-    }
 
     check_size_flags(args.width, args.height)?;
 
@@ -278,10 +287,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("ray sets read from {}", dir.display());
     }
     println!(
-        "raypack bench {}: {} triangles, {} spheres; {} ({} builder, K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
+        "raypack bench {}: {}; {} ({} builder, K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
         args.scene,
-        scene.geometry.triangles.len(),
-        scene.geometry.spheres.len(),
+        super::primitive_counts(&scene.geometry),
         ACCEL_NAME,
         args.tree.builder,
         args.tree.traversal_cost,
@@ -326,7 +334,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!(
         "{:<8} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
-        "set", "mode", "threads", "rays", "median", "min", "max"
+        "set", "mode", "threads", "rays", "Mrays/s", "min", "max"
     );
 
     let pools = threads
@@ -382,6 +390,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let load_after = load_average();
     println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
+    let busiest = threads.iter().copied().max().unwrap_or(1);
+    if machine_was_busy(load_after, busiest, machine.cores) {
+        eprintln!(
+            "raypack: warning: the machine was busy: load average {load_after:.2} with at most {} of raypack on {}; other processes shared the cores and these figures are unreliable",
+            super::count(busiest, "thread"),
+            super::count(machine.cores, "core"),
+        );
+    }
     if let Some(path) = &args.json {
         let report = Report {
             machine,
@@ -405,10 +421,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             load_average: [load_before, load_after],
             results: rows,
         };
-        let mut text = serde_json::to_string_pretty(&report)?;
-        text.push('\n');
-        rayset::write_atomic(path, text.as_bytes())?;
-        println!("wrote {}", path.display());
+        super::write_json(path, &report)?;
     }
     if !disagreements.is_empty() {
         anyhow::bail!(
@@ -417,4 +430,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::machine_was_busy;
+
+    #[test]
+    fn busy_means_load_beyond_raypacks_own_threads() {
+        // Two raypack threads on two cores account for a load of 2.
+        assert!(!machine_was_busy(2.4, 2, 2));
+        assert!(machine_was_busy(3.2, 2, 2));
+        // One thread on eight cores: 4 more runnable processes is a busy machine.
+        assert!(!machine_was_busy(4.9, 1, 8));
+        assert!(machine_was_busy(5.1, 1, 8));
+    }
 }

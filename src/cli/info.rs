@@ -13,7 +13,7 @@
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
-use raypack::rayset::{self, scenes, standard};
+use raypack::rayset::{scenes, standard};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -116,14 +116,11 @@ fn reset_peak() -> Option<u64> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::check_outputs([("--json", args.json.as_ref())])?;
     let scene = scenes::load(&args.scene)?;
     super::warn(&scene.warnings);
     let geometry = &scene.geometry;
-    let threads = if args.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        args.threads
-    };
+    let threads = super::thread_count(args.threads);
     let params = BuildParams {
         parallel: threads > 1,
         ..args.tree.params()?
@@ -153,22 +150,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let tris = geometry.triangles.len();
     let per_tri = |bytes: usize| bytes as f64 / tris.max(1) as f64;
     println!("scene            {}", args.scene);
+    println!("primitives       {}", super::primitive_counts(geometry));
+    let bounds = geometry.bounds();
+    if bounds.is_empty() {
+        println!("bounds           empty (planes only)");
+    } else {
+        println!("bounds           min {} max {}", bounds.min, bounds.max);
+    }
+    let bounded = tris + geometry.spheres.len() + geometry.boxes.len();
+    let degenerate = bounded - s.build.tree_prims as usize;
     println!(
-        "primitives       {} triangles, {} spheres, {} boxes, {} planes",
-        tris,
-        geometry.spheres.len(),
-        geometry.boxes.len(),
-        geometry.planes.len()
+        "in tree          {} of {} bounded ({} left out; planes are tested beside the tree)",
+        s.build.tree_prims,
+        bounded,
+        super::count(degenerate, "degenerate triangle"),
     );
     println!(
-        "in tree          {} (degenerate triangles left out)",
-        s.build.tree_prims
-    );
-    println!(
-        "build            {:.3} s median of {} on {} thread(s) (min {:.3} s), {} builder",
+        "build            {:.3} s median of {} on {} (min {:.3} s), {} builder",
         seconds[seconds.len() / 2],
-        seconds.len(),
-        threads,
+        super::count(seconds.len(), "build"),
+        super::count(threads, "thread"),
         seconds[0],
         params.builder
     );
@@ -281,10 +282,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             memory,
             primary,
         };
-        let mut text = serde_json::to_string_pretty(&report)?;
-        text.push('\n');
-        rayset::write_atomic(path, text.as_bytes())?;
-        println!("wrote {}", path.display());
+        super::write_json(path, &report)?;
     }
     Ok(())
 }

@@ -6,9 +6,24 @@ pub mod rays;
 pub mod render;
 pub mod trace;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use raypack::accel::kdtree::{BuildParams, BuilderKind};
 use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
+use std::path::{Path, PathBuf};
+
+#[cfg(test)]
+mod tests {
+    use super::count;
+
+    #[test]
+    fn counts_are_singular_for_one() {
+        assert_eq!(count(1, "triangle"), "1 triangle");
+        assert_eq!(count(0, "triangle"), "0 triangles");
+        assert_eq!(count(1, "box"), "1 box");
+        assert_eq!(count(2, "box"), "2 boxes");
+    }
+}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -169,16 +184,41 @@ pub fn check_size_flags(width: u32, height: u32) -> Result<(), BadInput> {
 pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchScene> {
     let scene = raypack::rayset::scenes::load(arg)?;
     eprintln!(
-        "{}: {} triangles, {} spheres, {} boxes, {} planes (loaded in {:.2} s)",
+        "{}: {} (loaded in {:.2} s)",
         scene.name,
-        scene.geometry.triangles.len(),
-        scene.geometry.spheres.len(),
-        scene.geometry.boxes.len(),
-        scene.geometry.planes.len(),
+        primitive_counts(&scene.geometry),
         scene.load_seconds
     );
     warn(&scene.warnings);
     Ok(scene)
+}
+
+/// The worker threads `--threads N` asks for: `0` means one per core, in every command.
+pub fn thread_count(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+}
+
+/// `1 triangle`, `2 triangles`: a count with its noun in the singular where it is 1.
+/// `noun` is the singular; the plural adds `s`, or `es` after `x` (`boxes`).
+pub fn count(n: usize, noun: &str) -> String {
+    let plural = if noun.ends_with('x') { "es" } else { "s" };
+    format!("{n} {noun}{}", if n == 1 { "" } else { plural })
+}
+
+/// The primitives of `geometry`, each kind named, e.g. `1 triangle, 0 spheres, 2 boxes,
+/// 1 plane`.
+pub fn primitive_counts(geometry: &raypack::scene::Geometry) -> String {
+    [
+        count(geometry.triangles.len(), "triangle"),
+        count(geometry.spheres.len(), "sphere"),
+        count(geometry.boxes.len(), "box"),
+        count(geometry.planes.len(), "plane"),
+    ]
+    .join(", ")
 }
 
 /// Prints each loader warning once on stderr.
@@ -186,6 +226,36 @@ pub fn warn(warnings: &[raypack::scene::Warning]) {
     for w in warnings {
         eprintln!("raypack: warning: {w}");
     }
+}
+
+/// Refuses an output that cannot be written (its folder is missing or read-only, or it
+/// names a folder) before any work is done, so a long render or build does not end in a
+/// failed write. Not bad input: exit code 1 with the OS error, as a failed write.
+pub fn check_output(flag: &str, path: &Path) -> anyhow::Result<()> {
+    raypack::output::check_writable(path)
+        .with_context(|| format!("{flag} {}: cannot write there", path.display()))
+}
+
+/// [`check_output`] of each path that is given.
+pub fn check_outputs<'a>(
+    outputs: impl IntoIterator<Item = (&'static str, Option<&'a PathBuf>)>,
+) -> anyhow::Result<()> {
+    for (flag, path) in outputs {
+        if let Some(path) = path {
+            check_output(flag, path)?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON to `path`, whole or not at all, and says so.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    raypack::output::write_bytes_atomic(path, text.as_bytes(), |e| e)
+        .with_context(|| format!("{}: cannot write the report", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
 }
 
 /// 2 when the error was caused by bad input, 1 otherwise.

@@ -14,8 +14,8 @@ pub struct Args {
     #[arg(long, default_value = "primary")]
     pub set: String,
     /// The rays file to write.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
+    #[arg(short, long, value_name = "OUT", alias = "out")]
+    pub output: Option<PathBuf>,
     /// Also write the closest hits of the set (scalar path) to this hits file.
     #[arg(long)]
     pub hits: Option<PathBuf>,
@@ -34,10 +34,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.out.is_none() && args.obj.is_none() {
-        return Err(
-            BadInput("nothing to write: give --out F.rays and/or --obj F.obj".into()).into(),
-        );
+    if args.output.is_none() && args.obj.is_none() {
+        return Err(BadInput("nothing to write: give -o F.rays and/or --obj F.obj".into()).into());
     }
     if !matches!(args.set.as_str(), "primary" | "shadow" | "diffuse") {
         return Err(BadInput(format!(
@@ -46,16 +44,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ))
         .into());
     }
-    if args.out.is_some() {
+    if args.output.is_some() {
         check_size_flags(args.width, args.height)?;
     }
+    super::check_outputs([
+        ("-o", args.output.as_ref()),
+        ("--hits", args.hits.as_ref()),
+        ("--obj", args.obj.as_ref()),
+    ])?;
     let scene = load_scene(&args.scene)?;
     if let Some(obj) = &args.obj {
         raypack::scene::spd::write_obj(obj, &scene.geometry, args.sphere_rings)
             .with_context(|| format!("writing the OBJ of {}", args.scene))?;
         println!("wrote {}", obj.display());
     }
-    let Some(out) = &args.out else {
+    let Some(out) = &args.output else {
         return Ok(());
     };
     let (accel, build_seconds, sets) =

@@ -1,26 +1,38 @@
-//! `raypack render SCENE.toml -o OUT.png [--width W --height H --spp N --threads T --seed S]`.
+//! `raypack render SCENE -o OUT [--width W --height H --spp N --threads T --seed S]`.
 //!
-//! Loads a scene file, builds its kd-tree, renders on a local rayon pool with a progress
-//! bar on stderr, writes the image (PFM when the name ends in `.pfm`, 8-bit sRGB PNG when
-//! it ends in `.png`; whole or not at all) and prints the build and render times, the
-//! rays traced by kind and rays per second.
+//! SCENE is a TOML scene file (see scenes/README.md), an OBJ mesh, or the name of a
+//! benchmark scene in ../shared/scenes/cameras.toml (`sponza`, `bunny`, `conference`,
+//! `cornell_box`). A mesh is shaded with its MTL colours and the light rig of
+//! [`light_rig`]; its camera is the one cameras.toml gives it, or one that frames its
+//! bounds. `--eye`, `--target`, `--up` and `--vfov` override the camera of any scene.
+//!
+//! The output is checked before any work (its folder must exist and be writable), the
+//! kd-tree is built and the image rendered on a local rayon pool with a progress bar on
+//! stderr; the summary (build and render times, rays by kind, rays per second) is
+//! printed before the image is written (PNG, PFM or EXR by the name; whole or not at
+//! all), so a failed write still reports the render.
 
 use super::{BadInput, ImageSide, check_image_size};
 use anyhow::Context;
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use raypack::accel::kdtree::KdTree;
-use raypack::render::film::ImageFormat;
+use raypack::rayset::View;
+use raypack::rayset::scenes;
+use raypack::render::film::{ImageFormat, WriteOptions};
 use raypack::render::{Mode, RayCounts, render, tiles};
-use raypack::scene::{AntiAlias, Scene};
+use raypack::scene::{AntiAlias, Camera, Light, Scene, Warning};
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML; see scenes/README.md).
-    pub scene: PathBuf,
-    /// Output image: PFM (32-bit float) when it ends in .pfm, 8-bit sRGB PNG when it ends
-    /// in .png (any case); other names are refused.
+    /// A TOML scene file (see scenes/README.md), an OBJ mesh, or a scene name of
+    /// ../shared/scenes/cameras.toml (sponza, bunny, conference, cornell_box).
+    pub scene: String,
+    /// Output image: 8-bit sRGB PNG (.png), 32-bit float PFM (.pfm) or OpenEXR (.exr),
+    /// by the name's ending (any case); other names are refused.
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
     /// Image width in pixels (default: the scene's).
@@ -34,9 +46,9 @@ pub struct Args {
     /// pixel n x n.
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    /// Worker threads (0, the default: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
     /// Seed of the area-light and glossy samples (default: the scene's).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -44,6 +56,74 @@ pub struct Args {
     /// time; both give the same image.
     #[arg(long, value_enum, default_value_t = ModeArg::Packet)]
     pub mode: ModeArg,
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// PNG only: scale the linear image by 2^EV before the clamp to [0, 1] and the sRGB
+    /// encoding (PFM and EXR keep linear radiance).
+    #[arg(long, value_name = "EV", allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+    /// EXR only: write 16-bit half floats instead of 32-bit floats.
+    #[arg(long)]
+    pub half: bool,
+    /// Also write the render's figures (times, rays by kind, rays/s, size, threads) as
+    /// JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// Camera overrides, each replacing one value of the scene's camera.
+#[derive(clap::Args, Debug, Default)]
+pub struct CameraArgs {
+    /// Camera position, `x,y,z`.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point the camera looks at, `x,y,z`.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Camera up direction, `x,y,z`.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees, in (0, 180).
+    #[arg(long, value_name = "DEG")]
+    pub vfov: Option<f32>,
+}
+
+/// `x,y,z` with three finite numbers.
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    let [x, y, z] = parts[..] else {
+        return Err(format!("expected three numbers x,y,z, not `{s}`"));
+    };
+    let num = |t: &str| match t.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("`{t}` is not a finite number")),
+    };
+    Ok(Vec3::new(num(x)?, num(y)?, num(z)?))
+}
+
+impl CameraArgs {
+    /// Applies the overrides to `camera`, refusing a camera that cannot form an image
+    /// (eye on the target, up along the view, a field of view outside (0, 180)).
+    pub fn apply(&self, camera: &mut Camera) -> Result<(), BadInput> {
+        camera.eye = self.eye.unwrap_or(camera.eye);
+        camera.target = self.target.unwrap_or(camera.target);
+        camera.up = self.up.unwrap_or(camera.up);
+        camera.vfov_deg = self.vfov.unwrap_or(camera.vfov_deg);
+        if !(camera.vfov_deg > 0.0 && camera.vfov_deg < 180.0) {
+            return Err(BadInput(format!(
+                "--vfov {}: the field of view must be in (0, 180) degrees",
+                camera.vfov_deg
+            )));
+        }
+        let forward = camera.target - camera.eye;
+        if forward.cross(camera.up).length_squared() <= 0.0 || !forward.is_finite() {
+            return Err(BadInput(format!(
+                "camera: eye {} and target {} must differ and up {} must not lie along the view",
+                camera.eye, camera.target, camera.up
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// `--mode`.
@@ -62,24 +142,126 @@ impl From<ModeArg> for Mode {
     }
 }
 
+/// Where a scene came from: a scene file brings its own lights, a mesh gets the rig.
+enum Source {
+    File,
+    Mesh,
+}
+
+/// Loads SCENE (see the module docs).
+fn load(arg: &str) -> anyhow::Result<(Scene, Vec<Warning>, Source)> {
+    let path = Path::new(arg);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("toml") => {
+            let (scene, warnings) = raypack::scene::file::load_with_warnings(path)?;
+            Ok((scene, warnings, Source::File))
+        }
+        Some("obj") => {
+            let mesh_camera = scenes::shared_view_of(path).map(|v| Camera::from(&v));
+            let (mut scene, warnings) =
+                Scene::from_obj(path, mesh_camera.clone().unwrap_or_default())?;
+            if mesh_camera.is_none() {
+                scene.camera = Camera::from(&scenes::overview(&scene.geometry));
+            }
+            Ok((scene, warnings, Source::Mesh))
+        }
+        _ if path.is_file() => Err(BadInput(format!(
+            "{arg}: not a scene: expected a .toml scene file, an .obj mesh, or a scene name"
+        ))
+        .into()),
+        _ => {
+            let (entry, obj) = scenes::shared_scene(arg)?;
+            let (scene, warnings) = Scene::from_obj(&obj, Camera::from(&entry.view()))?;
+            Ok((scene, warnings, Source::Mesh))
+        }
+    }
+}
+
+/// Brightness of the key light of [`light_rig`].
+pub const KEY_LIGHT: f32 = 0.6;
+/// Brightness of the fill light of [`light_rig`].
+pub const FILL_LIGHT: f32 = 0.2;
+/// Ambient term of a mesh scene, so that what neither light reaches is not pure black.
+pub const MESH_AMBIENT: f32 = 0.05;
+
+/// The lights of a mesh scene, which has none of its own: a white key light where
+/// `raypack bench` puts its shadow rays' light (halfway between the eye and whatever is
+/// above it, RAYS.md and `rayset::standard::default_light`), so the image shows the
+/// shadows the benchmark traces, and a dim fill light at the eye, so that surfaces in
+/// the key light's shadow still show their shape.
+pub fn light_rig(scene: &Scene, accel: &KdTree) -> anyhow::Result<Vec<Light>> {
+    let view = View::from(&scene.camera);
+    let (key, _) = raypack::rayset::standard::default_light(accel, &scene.geometry, &view)
+        .context("placing the key light")?;
+    Ok(vec![
+        Light::Point {
+            position: key.as_vec3(),
+            color: Vec3::splat(KEY_LIGHT),
+        },
+        Light::Point {
+            position: scene.camera.eye,
+            color: Vec3::splat(FILL_LIGHT),
+        },
+    ])
+}
+
+/// What `--json` writes.
+#[derive(Serialize, Debug)]
+struct Report<'a> {
+    scene: &'a str,
+    output: &'a Path,
+    width: u32,
+    height: u32,
+    threads: usize,
+    mode: &'a str,
+    primitives: u32,
+    build_seconds: f64,
+    render_seconds: f64,
+    rays: RaysReport,
+    mrays_per_second: f64,
+}
+
+#[derive(Serialize, Debug)]
+struct RaysReport {
+    total: u64,
+    primary: u64,
+    shadow: u64,
+    reflection: u64,
+    refraction: u64,
+    glossy: u64,
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    // Checked first: a name the film cannot be written under would only fail after the
-    // whole render.
-    if ImageFormat::from_path(&args.output).is_none() {
+    // Checked first: a name the film cannot be written under, or a folder it cannot be
+    // written in, would only fail after the whole render.
+    let Some(format) = ImageFormat::from_path(&args.output) else {
         return Err(BadInput(format!(
-            "-o {}: unknown image format; the name must end in .png or .pfm",
+            "-o {}: unknown image format; the name must end in .png, .pfm or .exr",
             args.output.display()
         ))
         .into());
-    }
-    let (mut scene, warnings) = raypack::scene::file::load_with_warnings(&args.scene)?;
-    super::warn(&warnings);
-    apply_overrides(&mut scene, &args)?;
-    let threads = match args.threads {
-        Some(0) => return Err(BadInput("--threads must be at least 1".into()).into()),
-        Some(t) => t,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
+    if args.exposure.is_some() && format != ImageFormat::Png {
+        return Err(BadInput("--exposure applies to PNG output only".into()).into());
+    }
+    if args.half && format != ImageFormat::Exr {
+        return Err(BadInput("--half applies to EXR output only".into()).into());
+    }
+    let exposure = args.exposure.unwrap_or(0.0);
+    if !exposure.is_finite() {
+        return Err(BadInput("--exposure must be a finite number".into()).into());
+    }
+    super::check_outputs([("-o", Some(&args.output)), ("--json", args.json.as_ref())])?;
+
+    let (mut scene, warnings, source) = load(&args.scene)?;
+    super::warn(&warnings);
+    args.camera.apply(&mut scene.camera)?;
+    apply_overrides(&mut scene, &args)?;
+    let threads = super::thread_count(args.threads);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -88,6 +270,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
     let accel = pool.install(|| KdTree::build(&scene.geometry));
     let build_seconds = start.elapsed().as_secs_f64();
+    if let Source::Mesh = source {
+        scene.lights = light_rig(&scene, &accel)?;
+        scene.settings.ambient = MESH_AMBIENT;
+    }
+    if scene.lights.is_empty() && scene.settings.ambient == 0.0 {
+        eprintln!(
+            "raypack: warning: {}: the scene has no lights and no ambient term; it renders black but for its background",
+            args.scene
+        );
+    }
 
     let s = &scene.settings;
     let bar = ProgressBar::new(tiles::tiles(s.width, s.height).len() as u64);
@@ -101,20 +293,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let render_seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    // The film's error names the file and the failure; its source is the OS error.
-    rendered.film.write(&args.output)?;
+    let c = &rendered.counts;
     print!(
         "{}",
         summary(
             &args.scene,
-            &args.output,
             &scene,
             threads,
             build_seconds,
             render_seconds,
-            &rendered.counts
+            c
         )
     );
+    if let Some(path) = &args.json {
+        let report = Report {
+            scene: &args.scene,
+            output: &args.output,
+            width: scene.settings.width,
+            height: scene.settings.height,
+            threads,
+            mode: match args.mode {
+                ModeArg::Scalar => "scalar",
+                ModeArg::Packet => "packet",
+            },
+            primitives: scene.geometry.prim_count(),
+            build_seconds,
+            render_seconds,
+            rays: RaysReport {
+                total: c.total(),
+                primary: c.primary,
+                shadow: c.shadow,
+                reflection: c.reflection,
+                refraction: c.refraction,
+                glossy: c.glossy,
+            },
+            mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+        };
+        super::write_json(path, &report)?;
+    }
+    // The film's error names the file and the failure; its source is the OS error.
+    let options = WriteOptions {
+        exposure,
+        exr_half: args.half,
+    };
+    rendered.film.write_with(&args.output, &options)?;
+    println!("wrote      {}", args.output.display());
     Ok(())
 }
 
@@ -152,8 +375,7 @@ fn apply_overrides(scene: &mut Scene, args: &Args) -> Result<(), BadInput> {
 }
 
 fn summary(
-    scene_path: &Path,
-    output: &Path,
+    scene_name: &str,
     scene: &Scene,
     threads: usize,
     build_seconds: f64,
@@ -174,9 +396,8 @@ fn summary(
          render     {render_seconds:.3} s\n\
          rays       {} total: {} primary, {} shadow, {} reflection, {} refraction, {} glossy\n\
          rays/s     {:.2} M\n\
-         {}\
-         wrote      {}\n",
-        scene_path.display(),
+         {}",
+        scene_name,
         s.width,
         s.height,
         scene.geometry.prim_count(),
@@ -188,7 +409,6 @@ fn summary(
         c.glossy,
         rays_per_second / 1e6,
         packet_summary(c),
-        output.display(),
     )
 }
 

@@ -13,24 +13,26 @@ pub struct Args {
     #[arg(long)]
     pub rays: PathBuf,
     /// The hits file to write (closest hits, whatever the set).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// scalar: one ray at a time; packet: 4 consecutive rays per packet.
-    #[arg(long, default_value = "scalar")]
+    #[arg(short, long, value_name = "OUT", alias = "out")]
+    pub output: PathBuf,
+    /// scalar: one ray at a time; packet: 4 consecutive rays per packet (the default,
+    /// as in `render`); both write the same hits.
+    #[arg(long, default_value = "packet")]
     pub mode: Mode,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::check_output("-o", &args.output)?;
     let rays = rayset::read_rays(&args.rays)?;
     let scene = load_scene(&args.scene)?;
     let (accel, build_seconds) = build_accel(&scene.geometry, &Default::default());
     let start = std::time::Instant::now();
     let hits = rayset::trace::trace_hits(&accel, &rays.rays, args.mode);
     let seconds = start.elapsed().as_secs_f64();
-    rayset::write_hits(&args.out, &hits)?;
+    rayset::write_hits(&args.output, &hits)?;
     println!(
         "{}: {} rays, {} hits ({} mode, build {:.3} s, trace {:.3} s), checksum {}",
-        args.out.display(),
+        args.output.display(),
         rays.len(),
         Checksum::of_hits(&hits).hits,
         args.mode,

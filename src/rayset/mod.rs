@@ -18,7 +18,6 @@ pub mod trace;
 
 use crate::ray::{Hit, NO_HIT, Ray};
 use glam::Vec3;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 pub use standard::{LightSource, StandardSets, View};
@@ -395,24 +394,11 @@ pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<(), RaySetError> {
     write_atomic(path, &hits_bytes(hits))
 }
 
-/// Writes `bytes` to `path.tmp.<pid>` beside `path`, then renames it over `path`; on any
-/// failure the temporary file is removed and `path` is left as it was.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RaySetError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(format!(".tmp.{}", std::process::id()));
-    let tmp = PathBuf::from(tmp);
-    let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| {
-            f.write_all(bytes)?;
-            f.sync_all()
-        })
-        .and_then(|()| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        RaySetError::Write {
-            path: path.to_path_buf(),
-            source: e,
-        }
+/// Writes `bytes` whole or not at all ([`crate::output::write_atomic`]).
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RaySetError> {
+    crate::output::write_bytes_atomic(path, bytes, |source| RaySetError::Write {
+        path: path.to_path_buf(),
+        source,
     })
 }
 

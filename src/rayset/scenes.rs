@@ -171,7 +171,7 @@ fn load_toml(path: &Path) -> Result<(Geometry, View, Vec<Warning>), BenchSceneEr
 }
 
 /// The camera of an OBJ file that is one of the shared scenes, if it is one.
-fn shared_view_of(path: &Path) -> Option<View> {
+pub fn shared_view_of(path: &Path) -> Option<View> {
     let dir = shared_scenes_dir()?;
     let wanted = path.canonicalize().ok()?;
     read_cameras(&dir.join("cameras.toml"))

@@ -58,6 +58,17 @@ impl From<&Camera> for View {
     }
 }
 
+impl From<&View> for Camera {
+    fn from(v: &View) -> Camera {
+        Camera {
+            eye: v.eye.as_vec3(),
+            target: v.target.as_vec3(),
+            up: v.up.as_vec3(),
+            vfov_deg: v.vfov_deg as f32,
+        }
+    }
+}
+
 /// `forward`, `right`, `up'` of RAYS.md.
 struct Frame {
     forward: DVec3,

@@ -1,12 +1,18 @@
-//! render: the film. Linear RGB pixels, written as 8-bit sRGB PNG (clamped to `[0, 1]`)
-//! or as PFM (32-bit floats, bit-exact, for comparisons between renders).
+//! render: the film. Linear RGB pixels, written as 8-bit sRGB PNG, as PFM (32-bit floats,
+//! bit-exact, for comparisons between renders) or as OpenEXR (32-bit float or 16-bit
+//! half RGB, for HDR tools).
+//!
+//! Tone mapping applies to PNG only: each linear value is multiplied by
+//! `2^exposure` (exposure 0 by default), clamped to `[0, 1]` and encoded with the sRGB
+//! transfer function. PFM and EXR keep the linear radiance as rendered.
 //!
 //! Invariant: a file is written whole or not at all. Bytes go to a temporary file in the
 //! target's directory, which is then renamed over the target; on error it is removed.
 
+use crate::output::write_atomic;
 use glam::Vec3;
 use std::fs::File;
-use std::io::{BufWriter, Read, Write};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// What can go wrong writing or reading a film. The underlying error is the `source`,
@@ -28,9 +34,14 @@ pub enum FilmError {
         path: PathBuf,
         source: image::ImageError,
     },
+    #[error("{}: OpenEXR encoding failed", path.display())]
+    Exr {
+        path: PathBuf,
+        source: exr::error::Error,
+    },
     #[error("{}: not a colour PFM file: {reason}", path.display())]
     BadPfm { path: PathBuf, reason: String },
-    #[error("{}: unknown image format (the name must end in .png or .pfm)", path.display())]
+    #[error("{}: unknown image format (the name must end in .png, .pfm or .exr)", path.display())]
     UnknownFormat { path: PathBuf },
 }
 
@@ -41,19 +52,40 @@ pub enum ImageFormat {
     Png,
     /// 32-bit float, bit-exact.
     Pfm,
+    /// OpenEXR, RGB in 32-bit float or 16-bit half ([`WriteOptions::exr_half`]).
+    Exr,
 }
 
 impl ImageFormat {
-    /// The format named by `path`'s extension (`.png` or `.pfm`, any case), or `None`:
-    /// writing PNG bytes under any other name (`.jpg`, `.exr`) would mislabel the file.
+    /// The format named by `path`'s extension (`.png`, `.pfm` or `.exr`, any case), or
+    /// `None`: writing PNG bytes under any other name (`.jpg`) would mislabel the file.
     pub fn from_path(path: &Path) -> Option<ImageFormat> {
         let ext = path.extension()?;
-        if ext.eq_ignore_ascii_case("png") {
-            Some(ImageFormat::Png)
-        } else if ext.eq_ignore_ascii_case("pfm") {
-            Some(ImageFormat::Pfm)
-        } else {
-            None
+        [
+            ("png", ImageFormat::Png),
+            ("pfm", ImageFormat::Pfm),
+            ("exr", ImageFormat::Exr),
+        ]
+        .into_iter()
+        .find(|(name, _)| ext.eq_ignore_ascii_case(name))
+        .map(|(_, format)| format)
+    }
+}
+
+/// How a film is encoded beyond its format.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WriteOptions {
+    /// PNG only: values are scaled by `2^exposure` before the clamp to `[0, 1]`.
+    pub exposure: f32,
+    /// EXR only: 16-bit half floats instead of 32-bit floats.
+    pub exr_half: bool,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            exposure: 0.0,
+            exr_half: false,
         }
     }
 }
@@ -97,66 +129,124 @@ impl Film {
         self.pixels[y as usize * self.width as usize + x as usize] = c;
     }
 
-    /// 8-bit sRGB, row-major from the top, 3 bytes per pixel.
-    pub fn to_srgb8(&self) -> Vec<u8> {
+    /// 8-bit sRGB, row-major from the top, 3 bytes per pixel, after scaling by
+    /// `2^exposure` (exposure 0 multiplies by exactly 1).
+    pub fn to_srgb8(&self, exposure: f32) -> Vec<u8> {
+        let scale = exposure.exp2();
         self.pixels
             .iter()
-            .flat_map(|c| [c.x, c.y, c.z].map(linear_to_srgb8))
+            .flat_map(|c| [c.x, c.y, c.z].map(|v| linear_to_srgb8(v * scale)))
             .collect()
     }
 
-    /// PFM when `path` ends in `.pfm`, PNG when it ends in `.png` (any case); any other
-    /// name is refused before anything is written ([`ImageFormat::from_path`]).
+    /// [`Film::write_with`] the default options.
     pub fn write(&self, path: &Path) -> Result<(), FilmError> {
+        self.write_with(path, &WriteOptions::default())
+    }
+
+    /// PFM, PNG or EXR as `path`'s extension says (any case); any other name is refused
+    /// before anything is written ([`ImageFormat::from_path`]).
+    pub fn write_with(&self, path: &Path, options: &WriteOptions) -> Result<(), FilmError> {
         match ImageFormat::from_path(path) {
             Some(ImageFormat::Pfm) => self.write_pfm(path),
-            Some(ImageFormat::Png) => self.write_png(path),
+            Some(ImageFormat::Png) => self.write_png(path, options.exposure),
+            Some(ImageFormat::Exr) => self.write_exr(path, options.exr_half),
             None => Err(FilmError::UnknownFormat {
                 path: path.to_owned(),
             }),
         }
     }
 
-    pub fn write_png(&self, path: &Path) -> Result<(), FilmError> {
-        let bytes = self.to_srgb8();
-        write_atomic(path, |w| {
-            image::write_buffer_with_format(
-                w,
-                &bytes,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgb8,
-                image::ImageFormat::Png,
-            )
-            .map_err(|source| FilmError::Png {
+    /// OpenEXR, one RGB layer, row 0 at the top (EXR's own orientation).
+    pub fn write_exr(&self, path: &Path, half: bool) -> Result<(), FilmError> {
+        use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage, f16};
+        let size = (self.width as usize, self.height as usize);
+        let exr_err = |source| FilmError::Exr {
+            path: path.to_owned(),
+            source,
+        };
+        let io_err = |source| FilmError::Write {
+            path: path.to_owned(),
+            source,
+        };
+        let pixel = |Vec2(x, y): Vec2<usize>| self.get(x as u32, y as u32);
+        write_atomic(path, io_err, |w| {
+            let result = if half {
+                let rgb = |p| {
+                    let c: Vec3 = pixel(p);
+                    (f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z))
+                };
+                Image::from_channels(size, SpecificChannels::rgb(rgb))
+                    .write()
+                    .to_buffered(w)
+            } else {
+                let rgb = |p| {
+                    let c: Vec3 = pixel(p);
+                    (c.x, c.y, c.z)
+                };
+                Image::from_channels(size, SpecificChannels::rgb(rgb))
+                    .write()
+                    .to_buffered(w)
+            };
+            result.map_err(exr_err)
+        })
+    }
+
+    /// 8-bit sRGB PNG of the film scaled by `2^exposure`.
+    pub fn write_png(&self, path: &Path, exposure: f32) -> Result<(), FilmError> {
+        let bytes = self.to_srgb8(exposure);
+        write_atomic(
+            path,
+            |source| FilmError::Write {
                 path: path.to_owned(),
                 source,
-            })
-        })
+            },
+            |w| {
+                image::write_buffer_with_format(
+                    w,
+                    &bytes,
+                    self.width,
+                    self.height,
+                    image::ExtendedColorType::Rgb8,
+                    image::ImageFormat::Png,
+                )
+                .map_err(|source| FilmError::Png {
+                    path: path.to_owned(),
+                    source,
+                })
+            },
+        )
     }
 
     /// Portable float map: header `PF\n<w> <h>\n-1.0\n` (negative scale: little endian),
     /// then rows of RGB f32 from the bottom row up.
     pub fn write_pfm(&self, path: &Path) -> Result<(), FilmError> {
-        write_atomic(path, |w| {
-            let io = |source| FilmError::Write {
+        write_atomic(
+            path,
+            |source| FilmError::Write {
                 path: path.to_owned(),
                 source,
-            };
-            write!(w, "PF\n{} {}\n-1.0\n", self.width, self.height).map_err(io)?;
-            let mut row = Vec::with_capacity(self.width as usize * 12);
-            for y in (0..self.height).rev() {
-                row.clear();
-                for x in 0..self.width {
-                    let c = self.get(x, y);
-                    for v in [c.x, c.y, c.z] {
-                        row.extend_from_slice(&v.to_le_bytes());
+            },
+            |w| {
+                let io = |source| FilmError::Write {
+                    path: path.to_owned(),
+                    source,
+                };
+                write!(w, "PF\n{} {}\n-1.0\n", self.width, self.height).map_err(io)?;
+                let mut row = Vec::with_capacity(self.width as usize * 12);
+                for y in (0..self.height).rev() {
+                    row.clear();
+                    for x in 0..self.width {
+                        let c = self.get(x, y);
+                        for v in [c.x, c.y, c.z] {
+                            row.extend_from_slice(&v.to_le_bytes());
+                        }
                     }
+                    w.write_all(&row).map_err(io)?;
                 }
-                w.write_all(&row).map_err(io)?;
-            }
-            Ok(())
-        })
+                Ok(())
+            },
+        )
     }
 
     /// Reads a colour PFM as written by [`Film::write_pfm`] (either byte order).
@@ -216,38 +306,6 @@ impl Film {
     }
 }
 
-/// Writes through `f` into a temporary file beside `path`, then renames it to `path`.
-fn write_atomic(
-    path: &Path,
-    f: impl FnOnce(&mut BufWriter<File>) -> Result<(), FilmError>,
-) -> Result<(), FilmError> {
-    let io = |source| FilmError::Write {
-        path: path.to_owned(),
-        source,
-    };
-    let name = path.file_name().ok_or_else(|| {
-        io(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a file name",
-        ))
-    })?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".{}.tmp", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
-    let result = File::create(&tmp).map_err(io).and_then(|file| {
-        let mut w = BufWriter::new(file);
-        f(&mut w)?;
-        let file = w.into_inner().map_err(|e| io(e.into_error()))?;
-        file.sync_all().map_err(io)
-    });
-    let result = result.and_then(|()| std::fs::rename(&tmp, path).map_err(io));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -301,14 +359,67 @@ mod tests {
     }
 
     #[test]
+    fn exr_round_trips_float_exactly_and_half_to_half_precision() {
+        let dir = temp_dir("exr");
+        let mut film = Film::new(3, 2);
+        film.set(0, 0, Vec3::new(0.1, 0.0, 1e30));
+        film.set(2, 1, Vec3::new(0.5, 2.0, 1.0 / 3.0));
+        for half in [false, true] {
+            let path = dir.join(if half { "h.EXR" } else { "f.exr" });
+            film.write_with(
+                &path,
+                &WriteOptions {
+                    exr_half: half,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let image = exr::prelude::read_first_rgba_layer_from_file(
+                &path,
+                |size, _| Film::new(size.width() as u32, size.height() as u32),
+                |film: &mut Film, p, (r, g, b, _): (f32, f32, f32, f32)| {
+                    film.set(p.x() as u32, p.y() as u32, Vec3::new(r, g, b))
+                },
+            )
+            .unwrap();
+            let back = image.layer_data.channel_data.pixels;
+            assert_eq!((back.width, back.height), (3, 2));
+            for (a, b) in film.pixels.iter().zip(&back.pixels) {
+                for i in 0..3 {
+                    let want = if half {
+                        exr::prelude::f16::from_f32(a[i]).to_f32()
+                    } else {
+                        a[i]
+                    };
+                    assert_eq!(want.to_bits(), b[i].to_bits(), "half {half}: {a} vs {b}");
+                }
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn exposure_scales_png_values_by_a_power_of_two_before_the_clamp() {
+        let mut film = Film::new(2, 1);
+        film.set(0, 0, Vec3::splat(0.25));
+        film.set(1, 0, Vec3::splat(0.75));
+        let (a, b) = (linear_to_srgb8(0.25), linear_to_srgb8(0.75));
+        assert_eq!(film.to_srgb8(0.0), [a, a, a, b, b, b]);
+        let plus_one = film.to_srgb8(1.0);
+        assert_eq!(plus_one[0], linear_to_srgb8(0.5));
+        assert_eq!(plus_one[3], 255, "0.75 * 2 clamps to white");
+        assert_eq!(film.to_srgb8(-2.0)[0], linear_to_srgb8(0.0625));
+    }
+
+    #[test]
     fn a_failed_write_leaves_nothing_behind() {
         let dir = temp_dir("fail");
         let target = dir.join("missing-dir").join("x.png");
         let err = Film::new(1, 1).write(&target).unwrap_err();
         assert!(matches!(err, FilmError::Write { .. }), "{err}");
         assert!(!target.exists());
-        // Names that are neither .png nor .pfm are refused, not written as PNG.
-        for name in ["x.jpg", "x.EXR", "x"] {
+        // Names that are not .png, .pfm or .exr are refused, not written as PNG.
+        for name in ["x.jpg", "x.tif", "x"] {
             let err = Film::new(1, 1).write(&dir.join(name)).unwrap_err();
             assert!(matches!(err, FilmError::UnknownFormat { .. }), "{err}");
         }

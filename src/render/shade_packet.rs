@@ -1,15 +1,15 @@
 //! render: packet shading. Camera quads and supersampling's sub-pixel samples are traced
 //! as 4-ray packets through [`Accel::intersect_packet`] (the kd-tree's SIMD traversal);
 //! the mirror and refraction rays their lanes spawn are traced as packets again, down
-//! the whole tree ([`Shader::finish_packet`]); the lanes' shadow rays toward each point
-//! light form a packet ([`Shader::point_shadows_packet`]); the glossy rays of one hit
+//! the whole tree (`Shader::finish_packet`); the lanes' shadow rays toward each point
+//! light form a packet (`Shader::point_shadows_packet`); the glossy rays of one hit
 //! point and the shadow rays toward the samples of one area light are traced [`LANES`]
 //! at a time.
 //!
 //! Invariant: a pixel is bit-identical to the scalar path's. The packet traversal
 //! returns the scalar closest hit and any-hit answer bit for bit
 //! (tests/packet_vs_scalar.rs); every hit is shaded by the scalar code's own steps
-//! ([`Shader::direct`], [`Shader::glossy`], [`Shader::mirror`], [`Shader::refraction`]),
+//! (`Shader::direct`, `Shader::glossy`, `Shader::mirror`, `Shader::refraction`),
 //! and tracing draws no random numbers, so only the order of the draws matters. Each
 //! lane of a packet is a camera sample with its own generator, and each lane's events
 //! keep the scalar order: its direct light and glossy rays, then its mirror ray's whole

@@ -3,24 +3,38 @@
 use crate::ray::Ray;
 use glam::Vec3;
 
+/// A pinhole camera at `eye` looking at `target`, as a scene file or a benchmark's
+/// `cameras.toml` gives it; [`Camera::frame`] turns it into an orthonormal basis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
+    /// Where every primary ray starts.
     pub eye: Vec3,
+    /// The point at the image centre; must differ from `eye`.
     pub target: Vec3,
+    /// A hint for the image's up direction: only its component perpendicular to the
+    /// view direction counts, so it must not be parallel to `target - eye`.
     pub up: Vec3,
+    /// Vertical field of view in degrees, edge to edge of the image.
     pub vfov_deg: f32,
 }
 
 /// A camera prepared for one image size.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraFrame {
+    /// Origin of every ray.
     pub eye: Vec3,
+    /// Unit vector from `eye` towards the target: the direction of the image centre.
     pub forward: Vec3,
+    /// Unit vector towards the image's right edge, `normalize(forward x up)`.
     pub right: Vec3,
+    /// Unit vector towards the image's top edge, `right x forward` (exactly
+    /// perpendicular to both, unlike the camera's `up` hint).
     pub up: Vec3,
     /// `tan(vfov / 2)`.
     pub h: f32,
+    /// Image width in pixels; with `height` it sets the aspect ratio.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
 }
 

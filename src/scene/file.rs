@@ -18,7 +18,7 @@ use super::texture::{self, Procedural};
 use super::{
     Aabb, AntiAlias, Camera, Light, Material, Plane, RenderSettings, Scene, Sphere, Texture,
 };
-use glam::{Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -30,9 +30,12 @@ pub const MAX_SIDE: u32 = 16384;
 /// Largest pixel count a scene may ask for (8192 x 8192). The CLI holds its `--width`
 /// and `--height` flags and the ray sets to the same limits, so no way in asks for more.
 pub const MAX_PIXELS: u64 = 1 << 26;
-/// Limits on recursion depth and per-point sample counts.
+/// Largest `max_depth` (reflection and refraction bounces) a scene may ask for.
 pub const MAX_DEPTH: u32 = 64;
+/// Largest per-point sample count (`glossy_samples`, an area light's `samples`): the
+/// work per shading point grows linearly with it.
 pub const MAX_SAMPLES: u32 = 4096;
+/// Largest `antialias_n`: `n x n` rays per pixel, so 256 at most.
 pub const MAX_ANTIALIAS_N: u32 = 16;
 /// Largest side of a generated texture.
 pub const MAX_PROCEDURAL_SIDE: u32 = 4096;
@@ -931,8 +934,65 @@ impl<'a> Doc<'a> {
         }
     }
 
+    /// The rotation of a mesh: `rotate = [x, y, z]` (degrees about the world axes, applied
+    /// x, then y, then z) or `rotate_axis` with `rotate_angle` (degrees about that axis);
+    /// the identity when neither is given. Positive angles follow the right-hand rule.
+    fn rotation(&self, s: &Section) -> Result<Mat3, SceneError> {
+        let (euler, axis, angle) = (s.get("rotate"), s.get("rotate_axis"), s.get("rotate_angle"));
+        if let Some(e) = euler {
+            if axis.or(angle).is_some() {
+                return Err(self.invalid(
+                    &e.span(),
+                    s.key("rotate"),
+                    "give `rotate` or `rotate_axis` with `rotate_angle`, not both",
+                ));
+            }
+            let [x, y, z] = self.vector::<3>(e, &s.key("rotate"))?;
+            return Ok(rotation_deg(Vec3::Z, z)
+                * rotation_deg(Vec3::Y, y)
+                * rotation_deg(Vec3::X, x));
+        }
+        match (axis, angle) {
+            (None, None) => Ok(Mat3::IDENTITY),
+            (Some(_), None) => Err(self.invalid(
+                &s.span,
+                s.key("rotate_angle"),
+                "missing (`rotate_axis` needs `rotate_angle`, in degrees)",
+            )),
+            (None, Some(a)) => Err(self.invalid(
+                &a.span(),
+                s.key("rotate_axis"),
+                "missing (`rotate_angle` needs `rotate_axis`)",
+            )),
+            (Some(v), Some(a)) => {
+                let axis = Vec3::from_array(self.vector::<3>(v, &s.key("rotate_axis"))?);
+                if axis == Vec3::ZERO {
+                    return Err(self.invalid(
+                        &v.span(),
+                        s.key("rotate_axis"),
+                        "the axis is zero; give a direction such as [0, 1, 0]",
+                    ));
+                }
+                let angle = self.number(a, &s.key("rotate_angle"))?;
+                // In f64, so any finite f32 axis has a length (1e30 squared overflows f32).
+                Ok(rotation_deg(axis.as_dvec3().normalize().as_vec3(), angle))
+            }
+        }
+    }
+
     fn mesh(&self, s: &Section, b: &mut Builder) -> Result<(), SceneError> {
-        self.check_keys(s, &["file", "material", "scale", "translate"])?;
+        self.check_keys(
+            s,
+            &[
+                "file",
+                "material",
+                "scale",
+                "rotate",
+                "rotate_axis",
+                "rotate_angle",
+                "translate",
+            ],
+        )?;
         let (file, span) = self.file(s, "file")?;
         let scale = match s.get("scale") {
             None => Vec3::ONE,
@@ -943,7 +1003,11 @@ impl<'a> Doc<'a> {
             let span = s.get("scale").map_or(s.span.clone(), |v| v.span());
             return Err(self.invalid(&span, s.key("scale"), "must not be 0 on any axis"));
         }
-        let translate = self.vec3(s, "translate", Some(Vec3::ZERO))?;
+        let transform = MeshTransform {
+            scale,
+            rotation: self.rotation(s)?,
+            translate: self.vec3(s, "translate", Some(Vec3::ZERO))?,
+        };
         let override_material = match s.get("material") {
             Some(_) => Some(self.material_ref(s, b)?),
             None => None,
@@ -981,12 +1045,74 @@ impl<'a> Doc<'a> {
             None => b.default_material(),
         };
         b.warnings.extend(mesh.warning(&file));
-        b.add_mesh(mesh, scale, translate, &materials, fallback);
+        b.add_mesh(mesh, &transform, &materials, fallback);
         if b.scene.geometry.triangles.len() as u64 >= u32::MAX as u64 / 2 {
             return Err(self.invalid(&span, s.key("file"), "too many triangles in the scene"));
         }
         Ok(())
     }
+}
+
+/// Where a mesh goes: `p' = rotation * (scale * p) + translate` (scale, then rotate,
+/// then translate).
+struct MeshTransform {
+    scale: Vec3,
+    rotation: Mat3,
+    translate: Vec3,
+}
+
+impl MeshTransform {
+    fn point(&self, p: Vec3) -> Vec3 {
+        // Skipping the identity keeps unrotated meshes bit for bit as they were.
+        let p = p * self.scale;
+        if self.rotation == Mat3::IDENTITY {
+            p + self.translate
+        } else {
+            self.rotation * p + self.translate
+        }
+    }
+
+    /// Normals transform by the inverse transpose of `rotation * scale`, which is
+    /// `rotation * scale^-1`.
+    fn normal(&self, n: Vec3) -> Vec3 {
+        let n = n / self.scale;
+        if self.rotation == Mat3::IDENTITY {
+            n.normalize_or_zero()
+        } else {
+            (self.rotation * n).normalize_or_zero()
+        }
+    }
+}
+
+/// `(sin, cos)` of `degrees`, exact at multiples of 90 so quarter turns keep axis-aligned
+/// meshes axis-aligned (`to_radians` would leave `cos(90) = -4.4e-8`).
+fn sin_cos_deg(degrees: f32) -> (f32, f32) {
+    let d = (degrees as f64).rem_euclid(360.0);
+    match d {
+        0.0 => (0.0, 1.0),
+        90.0 => (1.0, 0.0),
+        180.0 => (0.0, -1.0),
+        270.0 => (-1.0, 0.0),
+        _ => {
+            let (s, c) = d.to_radians().sin_cos();
+            (s as f32, c as f32)
+        }
+    }
+}
+
+/// The rotation by `degrees` about the unit vector `axis` (Rodrigues' formula,
+/// right-hand rule).
+fn rotation_deg(axis: Vec3, degrees: f32) -> Mat3 {
+    let (s, c) = sin_cos_deg(degrees);
+    let k = Mat3::from_cols(
+        Vec3::new(0.0, axis.z, -axis.y),
+        Vec3::new(-axis.z, 0.0, axis.x),
+        Vec3::new(axis.y, -axis.x, 0.0),
+    );
+    // I + s K + (1 - c) K^2, with K^2 = a a^T - I written out so an axis-aligned `axis`
+    // and a quarter turn give exact 0 and 1 entries.
+    let outer = Mat3::from_cols(axis * axis.x, axis * axis.y, axis * axis.z);
+    Mat3::IDENTITY * c + k * s + outer * (1.0 - c)
 }
 
 /// Names of the textures and materials defined so far, to their indices.
@@ -1030,13 +1156,12 @@ impl Builder {
         Ok(i)
     }
 
-    /// Appends `mesh` scaled then translated, with `materials[k]` for its MTL material
-    /// `k` and `fallback` for triangles before any `usemtl`.
+    /// Appends `mesh` placed by `transform`, with `materials[k]` for its MTL material `k`
+    /// and `fallback` for triangles before any `usemtl`.
     fn add_mesh(
         &mut self,
         mesh: ObjMesh,
-        scale: Vec3,
-        translate: Vec3,
+        transform: &MeshTransform,
         materials: &[u32],
         fallback: u32,
     ) {
@@ -1047,15 +1172,12 @@ impl Builder {
             self.scene.uvs = vec![Vec2::ZERO; g.vertices.len()];
         }
         g.vertices
-            .extend(mesh.positions.iter().map(|&p| p * scale + translate));
+            .extend(mesh.positions.iter().map(|&p| transform.point(p)));
         g.triangles
             .extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
-        // Normals transform by the inverse transpose: divide by the scale.
-        self.scene.normals.extend(
-            mesh.normals
-                .iter()
-                .map(|&n| (n / scale).normalize_or_zero()),
-        );
+        self.scene
+            .normals
+            .extend(mesh.normals.iter().map(|&n| transform.normal(n)));
         if !self.scene.uvs.is_empty() {
             if mesh.uvs.is_empty() {
                 self.scene
@@ -1173,6 +1295,130 @@ translate = [0, 0, 3]
         assert_eq!(s.camera.up, Vec3::Y);
         assert_eq!(s.camera.vfov_deg, 60.0);
         assert_eq!(s.materials, vec![Material::default()]);
+    }
+
+    /// One triangle at (1, 0, 0), (0, 1, 0), (0, 0, 1) with per-corner normals (1, 0, 0),
+    /// placed by the mesh keys `keys`.
+    fn placed_triangle(name: &str, keys: &str) -> Scene {
+        let text = format!("{CAMERA}[[meshes]]\nfile = \"t.obj\"\n{keys}\n");
+        let obj = "v 1 0 0\nv 0 1 0\nv 0 0 1\nvn 1 0 0\nf 1//1 2//1 3//1\n";
+        let dir = folder(name, &[("s.toml", &text), ("t.obj", obj)]);
+        load(&dir.join("s.toml")).unwrap()
+    }
+
+    fn assert_close(got: Vec3, want: Vec3, what: &str) {
+        assert!(
+            (got - want).abs().max_element() < 1e-6,
+            "{what}: got {got}, want {want}"
+        );
+    }
+
+    #[test]
+    fn quarter_turn_about_y_is_exact_and_turns_normals() {
+        // Right-hand rule about +y: x goes to -z, z goes to x.
+        for keys in [
+            "rotate = [0, 90, 0]",
+            "rotate = [0, -270, 0]",
+            "rotate_axis = [0, 2, 0]\nrotate_angle = 90",
+            "rotate_axis = [0, 3e38, 0]\nrotate_angle = 450",
+        ] {
+            let s = placed_triangle("quarter", keys);
+            let v = &s.geometry.vertices;
+            assert_eq!(v[0], Vec3::new(0.0, 0.0, -1.0), "{keys}");
+            assert_eq!(v[1], Vec3::Y, "{keys}");
+            assert_eq!(v[2], Vec3::X, "{keys}");
+            assert_eq!(s.normals[0], Vec3::new(0.0, 0.0, -1.0), "{keys}");
+        }
+    }
+
+    #[test]
+    fn euler_angles_apply_x_then_y_then_z() {
+        // x 90 takes y to z; y 90 takes that z to x; z 90 takes x to y.
+        let s = placed_triangle("euler", "rotate = [90, 90, 90]");
+        assert_eq!(s.geometry.vertices[1], Vec3::Y);
+        // The reverse order would move y elsewhere: z 90 first sends y to -x.
+        let r =
+            rotation_deg(Vec3::X, 90.0) * rotation_deg(Vec3::Y, 90.0) * rotation_deg(Vec3::Z, 90.0);
+        assert_ne!(r * Vec3::Y, Vec3::Y);
+    }
+
+    #[test]
+    fn scale_then_rotate_then_translate() {
+        let s = placed_triangle(
+            "order",
+            "scale = [2, 3, 4]\nrotate = [0, 0, 90]\ntranslate = [10, 20, 30]",
+        );
+        // (1,0,0) -> (2,0,0) -> z 90 -> (0,2,0) -> (10,22,30).
+        assert_eq!(s.geometry.vertices[0], Vec3::new(10.0, 22.0, 30.0));
+        // (0,1,0) -> (0,3,0) -> (-3,0,0) -> (7,20,30).
+        assert_eq!(s.geometry.vertices[1], Vec3::new(7.0, 20.0, 30.0));
+        assert_eq!(s.geometry.vertices[2], Vec3::new(10.0, 20.0, 34.0));
+        // The normal (1,0,0) divides by the scale, then turns with the mesh: (0,1,0).
+        assert_eq!(s.normals[0], Vec3::Y);
+    }
+
+    #[test]
+    fn axis_angle_about_the_diagonal_permutes_the_axes() {
+        // 120 degrees about (1,1,1) takes x to y, y to z, z to x.
+        let s = placed_triangle("diag", "rotate_axis = [1, 1, 1]\nrotate_angle = 120");
+        let v = &s.geometry.vertices;
+        assert_close(v[0], Vec3::Y, "x");
+        assert_close(v[1], Vec3::Z, "y");
+        assert_close(v[2], Vec3::X, "z");
+        assert_close(s.normals[0], Vec3::Y, "normal");
+    }
+
+    #[test]
+    fn rotations_keep_lengths_and_normals_perpendicular() {
+        let a = Vec3::new(0.3, -1.2, 0.7).normalize();
+        for degrees in [-725.0, -30.0, 1.0, 45.0, 137.5, 359.0] {
+            let r = rotation_deg(a, degrees);
+            assert_close(r * a, a, "the axis stays put");
+            let p = Vec3::new(1.0, 2.0, -3.0);
+            assert!(((r * p).length() - p.length()).abs() < 1e-5, "{degrees}");
+            let (sin, cos) = sin_cos_deg(degrees);
+            assert!((sin * sin + cos * cos - 1.0).abs() < 1e-6, "{degrees}");
+            // The angle between p's projection and its image is `degrees`.
+            let q = p - a * a.dot(p);
+            let rq = r * q;
+            assert!((q.cross(rq).dot(a) / q.length_squared() - sin).abs() < 1e-5);
+            assert!((q.dot(rq) / q.length_squared() - cos).abs() < 1e-5);
+        }
+        // A rotated, non-uniformly scaled mesh keeps normals perpendicular to its faces.
+        let s = placed_triangle("perp", "scale = [1, 2, 5]\nrotate = [20, -40, 75]");
+        let v = &s.geometry.vertices;
+        let n = s.normals[0];
+        assert!((n.length() - 1.0).abs() < 1e-6);
+        // The OBJ's normal (1,0,0) is not the face normal, but the transform must map the
+        // plane it is perpendicular to (x = 0: edge v1 - v2) onto one still perpendicular.
+        assert!(n.dot(v[1] - v[2]).abs() < 1e-5, "{n} vs {:?}", v[1] - v[2]);
+    }
+
+    /// The transform example of scenes/README.md loads, and its flat knot is flat.
+    #[test]
+    fn readme_transform_example_loads() {
+        let readme = include_str!("../../scenes/README.md");
+        let start = readme.find("```toml\n").expect("a toml block") + 8;
+        let len = readme[start..].find("```").expect("the block ends");
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let s = parse(&scenes.join("example.toml"), &readme[start..start + len]).unwrap();
+        let v = &s.geometry.vertices;
+        let third = v.len() / 3;
+        let y = |r: Range<usize>| {
+            v[r].iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+                (lo.min(p.y), hi.max(p.y))
+            })
+        };
+        let (upright, flat) = (y(0..third), y(third..2 * third));
+        assert!(
+            upright.1 - upright.0 > 2.5,
+            "upright knot spans {upright:?}"
+        );
+        assert!(flat.1 - flat.0 < 1.2, "flat knot spans {flat:?}");
+        assert!(
+            (flat.0 + 1.5).abs() < 1e-3,
+            "the flat knot rests on the floor: {flat:?}"
+        );
     }
 
     #[test]

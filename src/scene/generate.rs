@@ -15,10 +15,12 @@ use glam::Vec3;
 pub struct Rng(u64);
 
 impl Rng {
+    /// The generator whose sequence is fixed by `seed` alone.
     pub fn new(seed: u64) -> Rng {
         Rng(seed)
     }
 
+    /// The next 64 random bits; the other draws are built on it.
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;

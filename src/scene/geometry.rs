@@ -9,7 +9,9 @@ use glam::Vec3;
 /// An axis-aligned box. An empty box has `min > max` on every axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// The corner with the smallest coordinate on every axis (inclusive).
     pub min: Vec3,
+    /// The corner with the largest coordinate on every axis (inclusive).
     pub max: Vec3,
 }
 
@@ -20,15 +22,19 @@ impl Aabb {
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
+    /// The box between two corners, taken as given (`min > max` on an axis makes it
+    /// empty).
     pub fn new(min: Vec3, max: Vec3) -> Self {
         Aabb { min, max }
     }
 
+    /// Extends the box to contain `p`.
     pub fn grow(&mut self, p: Vec3) {
         self.min = self.min.min(p);
         self.max = self.max.max(p);
     }
 
+    /// The smallest box containing both; [`Aabb::EMPTY`] is its identity.
     pub fn union(&self, other: &Aabb) -> Aabb {
         Aabb {
             min: self.min.min(other.min),
@@ -36,10 +42,14 @@ impl Aabb {
         }
     }
 
+    /// True when no point is inside: `min > max` on some axis. A single point, or a flat
+    /// box of zero width, is not empty.
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
     }
 
+    /// Side lengths, zero for an empty box (rather than the negative infinities of
+    /// [`Aabb::EMPTY`]).
     pub fn extent(&self) -> Vec3 {
         if self.is_empty() {
             Vec3::ZERO
@@ -53,23 +63,30 @@ impl Aabb {
         self.extent().length()
     }
 
+    /// Surface area, the SAH's measure of how likely a ray is to cross the box; zero for
+    /// an empty box.
     pub fn surface_area(&self) -> f32 {
         let e = self.extent();
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 
+    /// True when `p` is inside or on the boundary.
     pub fn contains(&self, p: Vec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }
 }
 
+/// A sphere, intersected analytically (not tessellated).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
+    /// Centre; texture coordinates turn about the +y axis through it.
     pub center: Vec3,
+    /// Radius, greater than 0 (scene files reject others).
     pub radius: f32,
 }
 
 impl Sphere {
+    /// The tight axis-aligned box around the sphere.
     pub fn bounds(&self) -> Aabb {
         Aabb::new(
             self.center - Vec3::splat(self.radius),
@@ -81,26 +98,37 @@ impl Sphere {
 /// The infinite plane of points `p` with `dot(normal, p) == offset`; `normal` is unit length.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Plane {
+    /// Unit normal; the side it points to is the front.
     pub normal: Vec3,
+    /// Signed distance of the plane from the origin along `normal`.
     pub offset: f32,
 }
 
 /// Which array a primitive id points into, with the index inside that array.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PrimRef {
+    /// Index into [`Geometry::triangles`].
     Triangle(u32),
+    /// Index into [`Geometry::spheres`].
     Sphere(u32),
+    /// Index into [`Geometry::boxes`].
     Box(u32),
+    /// Index into [`Geometry::planes`].
     Plane(u32),
 }
 
 /// All primitives of a scene. Triangles index `vertices`.
 #[derive(Clone, Debug, Default)]
 pub struct Geometry {
+    /// Triangle corners, shared between triangles (OBJ's `v` lines, in order).
     pub vertices: Vec<Vec3>,
+    /// Three indices into `vertices` per triangle; a triangle's position here is its id.
     pub triangles: Vec<[u32; 3]>,
+    /// Spheres, with ids after the triangles.
     pub spheres: Vec<Sphere>,
+    /// Axis-aligned boxes as solid primitives, with ids after the spheres.
     pub boxes: Vec<Aabb>,
+    /// Infinite planes, with the last ids; tested beside the tree, never in it.
     pub planes: Vec<Plane>,
 }
 

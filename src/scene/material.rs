@@ -2,6 +2,8 @@
 
 use glam::{Vec2, Vec3};
 
+/// How a surface shades: the Whitted model's diffuse, Phong, mirror and refraction
+/// weights, each in `[0, 1]` as the scene file checks them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     /// Base colour (linear RGB); multiplied by the texture where there is one.

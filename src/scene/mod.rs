@@ -1,6 +1,8 @@
 //! Scene description: geometry, materials, lights, camera, textures, and the loaders
 //! that build them from TOML scene files and OBJ meshes.
 
+#![warn(missing_docs)]
+
 pub mod camera;
 pub mod error;
 pub mod file;
@@ -13,7 +15,7 @@ pub mod spd;
 pub mod texture;
 
 pub use camera::{Camera, CameraFrame};
-pub use error::{ObjError, SceneError, TextureError, Warning};
+pub use error::{DecodeError, ObjError, SceneError, TextureError, Warning};
 pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere};
 pub use light::Light;
 pub use material::Material;
@@ -36,13 +38,18 @@ pub enum AntiAlias {
 /// Image and sampling settings of a scene (overridable from the CLI).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
+    /// Image width in pixels, 1 to [`file::MAX_SIDE`].
     pub width: u32,
+    /// Image height in pixels; `width * height` is at most [`file::MAX_PIXELS`].
     pub height: u32,
     /// Recursion limit for reflection and refraction.
     pub max_depth: u32,
+    /// Rays per pixel: one, `n x n` everywhere, or `n x n` only at edges.
     pub antialias: AntiAlias,
     /// Samples per glossy reflection at the first bounce.
     pub glossy_samples: u32,
+    /// Seeds every random choice (jitter, glossy and area-light samples): the image
+    /// depends only on the scene and this value, whatever the thread count.
     pub seed: u64,
     /// Colour of rays that leave the scene.
     pub background: Vec3,
@@ -68,6 +75,7 @@ impl Default for RenderSettings {
 /// Everything the renderer needs.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
+    /// The primitives, whose order fixes the prim ids of every other table here.
     pub geometry: Geometry,
     /// Per-vertex shading normals, parallel to `geometry.vertices` (empty: use geometric).
     pub normals: Vec<Vec3>,
@@ -75,10 +83,15 @@ pub struct Scene {
     pub uvs: Vec<Vec2>,
     /// Material of every primitive, by primitive id (planes included).
     pub prim_material: Vec<u32>,
+    /// Materials, indexed by `prim_material`; every index there is valid.
     pub materials: Vec<Material>,
+    /// Textures, indexed by [`Material::texture`]; every index there is valid.
     pub textures: Vec<Texture>,
+    /// Lights; may be empty (then only `settings.ambient` lights the scene).
     pub lights: Vec<Light>,
+    /// The camera of the scene file, which the CLI may override.
     pub camera: Camera,
+    /// Image size and sampling, which the CLI may override.
     pub settings: RenderSettings,
 }
 

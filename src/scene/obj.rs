@@ -26,7 +26,7 @@
 //! is streaming and linear in the file size.
 
 use super::error::{ObjError, Warning};
-use super::{Camera, Geometry, Light, Material, RenderSettings, Scene};
+use super::{Camera, Geometry, Material, RenderSettings, Scene};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::fs::File;
@@ -36,6 +36,7 @@ use std::path::{Path, PathBuf};
 /// A triangle mesh loaded from an OBJ file (see the module invariants).
 #[derive(Clone, Debug, Default)]
 pub struct ObjMesh {
+    /// Vertex positions (`v` lines), in file order; all finite.
     pub positions: Vec<Vec3>,
     /// Corner indices into `positions`, in file order (the prim ids of RAYS.md).
     pub triangles: Vec<[u32; 3]>,
@@ -59,6 +60,7 @@ pub struct ObjMesh {
 /// The part of an MTL material that raypack uses.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjMaterial {
+    /// The `newmtl` name that `usemtl` refers to.
     pub name: String,
     /// `Kd` (default 0.8 grey when the material has none).
     pub diffuse: Vec3,
@@ -83,35 +85,68 @@ impl ObjMesh {
 }
 
 impl Scene {
-    /// A scene of one OBJ mesh for benchmarks and quick looks: its triangles (prim ids as
-    /// in RAYS.md) with the mesh's normals and texture coordinates, one default grey
-    /// material on every triangle (MTL materials are ignored), a white point light at the
-    /// eye and 1024x768 settings, the size of RAYS.md's standard ray sets.
-    pub fn from_obj(path: &Path, camera: Camera) -> Result<Scene, ObjError> {
+    /// A scene of one OBJ mesh, for rendering the benchmark meshes and any OBJ file: its
+    /// triangles (prim ids as in RAYS.md); the file's normals and texture coordinates
+    /// where it has them, geometric normals where it has none (smoothing normals the
+    /// author did not give would round off hard edges); one material per MTL material,
+    /// with its `Kd` colour and `map_Kd` texture, and the default grey for triangles
+    /// before any `usemtl`; no lights (the caller places them); 1024x768, the size of
+    /// RAYS.md's standard ray sets. Returns the mesh's warnings beside the scene.
+    pub fn from_obj(path: &Path, camera: Camera) -> Result<(Scene, Vec<Warning>), ObjError> {
         let mesh = load(path)?;
-        let prim_material = vec![0; mesh.triangles.len()];
-        Ok(Scene {
+        let warnings = mesh.warning(path).into_iter().collect();
+        let mut textures = Vec::new();
+        let mut materials = Vec::with_capacity(mesh.materials.len() + 1);
+        for m in &mesh.materials {
+            let texture = match &m.diffuse_texture {
+                Some(file) => {
+                    let t = super::texture::load(file).map_err(|source| ObjError::Texture {
+                        path: path.to_path_buf(),
+                        material: m.name.clone(),
+                        source: Box::new(source),
+                    })?;
+                    textures.push(t);
+                    Some(textures.len() as u32 - 1)
+                }
+                None => None,
+            };
+            materials.push(Material {
+                color: m.diffuse,
+                texture,
+                ..Material::default()
+            });
+        }
+        let fallback = materials.len() as u32;
+        materials.push(Material::default());
+        let prim_material = mesh
+            .tri_material
+            .iter()
+            .map(|m| m.unwrap_or(fallback))
+            .collect();
+        let scene = Scene {
             geometry: Geometry {
                 vertices: mesh.positions,
                 triangles: mesh.triangles,
                 ..Default::default()
             },
-            normals: mesh.normals,
+            normals: if mesh.normals_from_file {
+                mesh.normals
+            } else {
+                Vec::new()
+            },
             uvs: mesh.uvs,
             prim_material,
-            materials: vec![Material::default()],
-            textures: Vec::new(),
-            lights: vec![Light::Point {
-                position: camera.eye,
-                color: Vec3::ONE,
-            }],
+            materials,
+            textures,
+            lights: Vec::new(),
             camera,
             settings: RenderSettings {
                 width: 1024,
                 height: 768,
                 ..Default::default()
             },
-        })
+        };
+        Ok((scene, warnings))
     }
 }
 

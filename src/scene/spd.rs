@@ -30,37 +30,57 @@ use std::path::Path;
 /// Primitive count above which a size is refused (memory, not principle).
 pub const MAX_PRIMITIVES: u64 = 60_000_000;
 
+/// An SPD scene spec (`NAME[:SIZE]`) that names no database or size raypack generates,
+/// or an export that cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum SpdError {
+    /// The name before `:` is not a database; it is kept as given.
     #[error(
         "spd scene `{0}`: unknown database (expected balls, sphereflake, gears, mount, rings, tetra or tree)"
     )]
     UnknownKind(String),
     #[error("spd scene `{spec}`: size `{size}` is not a whole number")]
-    BadSize { spec: String, size: String },
+    /// The part after `:` is not a whole number.
+    BadSize {
+        /// The whole spec, as given.
+        spec: String,
+        /// The part after `:`, as given.
+        size: String,
+    },
     /// A whole number too large for the database (or for a `u32`).
     #[error(
         "spd scene `{spec}`: size {size} is out of range: {kind} takes sizes 0 to {max} (at most {MAX_PRIMITIVES} primitives)"
     )]
     SizeOutOfRange {
+        /// The whole spec, as given.
         spec: String,
+        /// The part after `:`, as given (it may not fit a `u32`).
         size: String,
+        /// The database's name.
         kind: &'static str,
+        /// The largest size of the database within [`MAX_PRIMITIVES`].
         max: u32,
     },
     #[error(
         "spd scene {kind}:{size}: about {count} primitives, more than the limit of {MAX_PRIMITIVES} (sizes 0 to {max})"
     )]
+    /// A size whose primitive count exceeds [`MAX_PRIMITIVES`].
     TooLarge {
+        /// The database's name.
         kind: &'static str,
+        /// The size asked for.
         size: u32,
+        /// Primitives the database would have at `size`.
         count: u64,
+        /// The largest size of the database within [`MAX_PRIMITIVES`].
         max: u32,
     },
     /// The OBJ export cannot be written; the OS error is the source, not in the message.
     #[error("{}: cannot write", path.display())]
     Write {
+        /// The OBJ file being written.
         path: std::path::PathBuf,
+        /// What the OS said.
         source: std::io::Error,
     },
 }
@@ -68,15 +88,22 @@ pub enum SpdError {
 /// The six databases.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpdKind {
+    /// The sphereflake: spheres only, on a two-triangle floor.
     Balls,
+    /// Meshing gears: triangles only, many long and thin.
     Gears,
+    /// A fractal mountain: small triangles over a large, uneven surface.
     Mount,
+    /// Rings of spheres and tubes in a stepped pyramid.
     Rings,
+    /// The Sierpinski tetrahedron: triangles spread through mostly empty space.
     Tetra,
+    /// A binary tree of cones and spheres.
     Tree,
 }
 
 impl SpdKind {
+    /// Every database, in the order of their names' alphabet.
     pub const ALL: [SpdKind; 6] = [
         SpdKind::Balls,
         SpdKind::Gears,
@@ -86,6 +113,7 @@ impl SpdKind {
         SpdKind::Tree,
     ];
 
+    /// The database called `name` (`sphereflake` is another name of `balls`).
     pub fn parse(name: &str) -> Result<SpdKind, SpdError> {
         Ok(match name {
             "balls" | "sphereflake" => SpdKind::Balls,
@@ -98,6 +126,7 @@ impl SpdKind {
         })
     }
 
+    /// The name [`SpdKind::parse`] reads back (`balls` for the sphereflake).
     pub fn name(self) -> &'static str {
         match self {
             SpdKind::Balls => "balls",
@@ -158,9 +187,13 @@ fn ring_count(size: u32) -> u64 {
 /// A generated database.
 #[derive(Clone, Debug)]
 pub struct SpdScene {
+    /// Which database.
     pub kind: SpdKind,
+    /// The size it was generated at.
     pub size: u32,
+    /// Its triangles and spheres (no boxes or planes).
     pub geometry: Geometry,
+    /// The camera: the published one for `balls`, one framing the bounds for the rest.
     pub view: View,
 }
 
@@ -656,12 +689,9 @@ pub fn write_obj(path: &Path, g: &Geometry, rings: u32) -> Result<(), SpdError> 
         }
         next += 8;
     }
-    crate::rayset::write_atomic(path, out.as_bytes()).map_err(|e| match e {
-        crate::rayset::RaySetError::Write { path, source } => SpdError::Write { path, source },
-        other => SpdError::Write {
-            path: path.to_path_buf(),
-            source: std::io::Error::other(other.to_string()),
-        },
+    crate::output::write_bytes_atomic(path, out.as_bytes(), |source| SpdError::Write {
+        path: path.to_path_buf(),
+        source,
     })
 }
 

@@ -4,13 +4,20 @@
 //! textures the classic scenes use (checker, bricks, marble) are generated here, so no
 //! texture has to come from elsewhere. Generation is deterministic (seeded hashes).
 
-use super::error::TextureError;
+use super::error::{DecodeError, TextureError};
 use glam::Vec3;
+use image::{ImageFormat, ImageReader};
+use std::fs::File;
+use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
+/// An image in linear RGB, decoded or generated once at load time so that lookups while
+/// rendering only read memory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
+    /// Texels per row; at least 1 for any texture that is sampled.
     pub width: u32,
+    /// Rows; `texels.len() == width * height`.
     pub height: u32,
     /// Row-major, row 0 at `v = 0`.
     pub texels: Vec<Vec3>,
@@ -58,29 +65,54 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 /// RGB: 8- and 16-bit channels are taken as sRGB-encoded, alpha is dropped. The image's
 /// top row becomes `v = 1` and its bottom row `v = 0`, the OBJ convention.
 pub fn load(path: &Path) -> Result<Texture, TextureError> {
-    let decode = |source| TextureError::Decode {
+    let io = |source| TextureError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let reader = image::ImageReader::open(path)
-        .map_err(|source| TextureError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?
-        .with_guessed_format()
-        .map_err(|source| TextureError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-    let mut reader = reader;
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
-    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
-    limits.max_alloc = Some(1 << 30);
-    reader.limits(limits);
-    let img = reader.decode().map_err(decode)?;
-    let (width, height) = (img.width(), img.height());
-    if width == 0 || height == 0 {
+    let mut file = File::open(path).map_err(io)?;
+    let mut head = Vec::with_capacity(HEAD_LEN);
+    (&mut file)
+        .take(HEAD_LEN as u64)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    let format = match sniff(&head) {
+        Sniffed::Image(f) => f,
+        Sniffed::Empty => {
+            return Err(TextureError::Empty {
+                path: path.to_path_buf(),
+            });
+        }
+        Sniffed::Unsupported(format) => {
+            return Err(TextureError::Unsupported {
+                path: path.to_path_buf(),
+                format,
+            });
+        }
+        Sniffed::Other(what) => {
+            return Err(TextureError::NotAnImage {
+                path: path.to_path_buf(),
+                what,
+            });
+        }
+    };
+    let decode = |source| TextureError::Decode {
+        path: path.to_path_buf(),
+        format: format_name(format),
+        source: DecodeError(source),
+    };
+    fn reader(file: &mut File, format: ImageFormat) -> ImageReader<BufReader<&mut File>> {
+        let mut r = ImageReader::with_format(BufReader::new(file), format);
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(1 << 30);
+        r.limits(limits);
+        r
+    }
+    // The header first, so an oversized image is refused by its size before decoding.
+    file.rewind().map_err(io)?;
+    let (width, height) = reader(&mut file, format)
+        .into_dimensions()
+        .map_err(decode)?;
+    if width == 0 || height == 0 || width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE {
         return Err(TextureError::Size {
             path: path.to_path_buf(),
             width,
@@ -88,6 +120,9 @@ pub fn load(path: &Path) -> Result<Texture, TextureError> {
             max: MAX_TEXTURE_SIDE,
         });
     }
+    file.rewind().map_err(io)?;
+    let img = reader(&mut file, format).decode().map_err(decode)?;
+    let (width, height) = (img.width(), img.height());
     let rgb = img.into_rgb32f();
     let mut texels = Vec::with_capacity(width as usize * height as usize);
     for row in rgb.as_raw().chunks_exact(3 * width as usize).rev() {
@@ -104,6 +139,105 @@ pub fn load(path: &Path) -> Result<Texture, TextureError> {
         height,
         texels,
     })
+}
+
+/// Bytes read to tell a file's format: every magic number `image` knows, the 18-byte TGA
+/// header, and a line of text to quote.
+const HEAD_LEN: usize = 64;
+
+/// What the first bytes of a file say it is.
+#[derive(Debug, PartialEq)]
+enum Sniffed {
+    Image(ImageFormat),
+    Empty,
+    Unsupported(&'static str),
+    Other(String),
+}
+
+fn sniff(head: &[u8]) -> Sniffed {
+    match image::guess_format(head) {
+        Ok(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => Sniffed::Image(f),
+        Ok(f) => Sniffed::Unsupported(format_name(f)),
+        Err(_) if head.is_empty() => Sniffed::Empty,
+        Err(_) if is_tga_header(head) => Sniffed::Image(ImageFormat::Tga),
+        Err(_) => Sniffed::Other(describe(head)),
+    }
+}
+
+/// TGA has no magic number; its header is recognised by values only a TGA file has
+/// together: colour-map type 0 or 1, a known image type, non-zero sides and a valid pixel
+/// depth (Truevision TGA 2.0 specification, fields 2, 3, 5.3, 5.4 and 5.5).
+fn is_tga_header(h: &[u8]) -> bool {
+    let colour_map = match h.get(1) {
+        // No colour map: its specification is zero and the image is not colour-mapped.
+        Some(0) => h[3..8.min(h.len())].iter().all(|&b| b == 0) && !matches!(h[2], 1 | 9),
+        Some(1) => h.len() > 7 && matches!(h[7], 15 | 16 | 24 | 32),
+        _ => false,
+    };
+    h.len() >= 18
+        && colour_map
+        && matches!(h[2], 1 | 2 | 3 | 9 | 10 | 11)
+        && u16::from_le_bytes([h[12], h[13]]) > 0
+        && u16::from_le_bytes([h[14], h[15]]) > 0
+        && matches!(h[16], 8 | 15 | 16 | 24 | 32)
+        && h[17] & 0xc0 == 0
+}
+
+/// What a file that is not an image looks like, for the error message.
+fn describe(head: &[u8]) -> String {
+    const KNOWN: [(&[u8], &str); 5] = [
+        (b"%PDF", "a PDF document"),
+        (b"PK\x03\x04", "a ZIP archive"),
+        (b"\x1f\x8b", "gzip-compressed data"),
+        (b"\x7fELF", "an ELF executable"),
+        (b"\xef\xbb\xbf", "text with a byte-order mark"),
+    ];
+    if let Some((_, what)) = KNOWN.iter().find(|(magic, _)| head.starts_with(magic)) {
+        return what.to_string();
+    }
+    // A multi-byte character cut by the end of `head` is still text.
+    let text = match std::str::from_utf8(head) {
+        Ok(t) => Some(t),
+        Err(e) if e.error_len().is_none() => std::str::from_utf8(&head[..e.valid_up_to()]).ok(),
+        Err(_) => None,
+    };
+    match text {
+        Some(t)
+            if !t
+                .chars()
+                .any(|c| c.is_control() && !c.is_ascii_whitespace()) =>
+        {
+            let line = t.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+            let quote: String = line.trim().chars().take(40).collect();
+            format!("text (`{}`)", quote.escape_debug())
+        }
+        _ => {
+            let hex: Vec<String> = head.iter().take(8).map(|b| format!("{b:02x}")).collect();
+            format!("unrecognised data (first bytes {})", hex.join(" "))
+        }
+    }
+}
+
+/// The usual name of an image format, for messages.
+fn format_name(f: ImageFormat) -> &'static str {
+    match f {
+        ImageFormat::Png => "PNG",
+        ImageFormat::Jpeg => "JPEG",
+        ImageFormat::Tga => "TGA",
+        ImageFormat::Gif => "GIF",
+        ImageFormat::WebP => "WebP",
+        ImageFormat::Tiff => "TIFF",
+        ImageFormat::Bmp => "BMP",
+        ImageFormat::Ico => "ICO",
+        ImageFormat::Hdr => "Radiance HDR",
+        ImageFormat::OpenExr => "OpenEXR",
+        ImageFormat::Avif => "AVIF",
+        ImageFormat::Qoi => "QOI",
+        ImageFormat::Pnm => "PNM",
+        ImageFormat::Dds => "DDS",
+        ImageFormat::Farbfeld => "farbfeld",
+        _ => "an unsupported",
+    }
 }
 
 impl Texture {
@@ -128,25 +262,43 @@ impl Texture {
 pub enum Procedural {
     /// `squares x squares` alternating squares of `a` and `b`, `a` at texel (0, 0).
     /// Tiles seamlessly when `squares` is even.
-    Checker { squares: u32, a: Vec3, b: Vec3 },
+    Checker {
+        /// Squares along each side.
+        squares: u32,
+        /// Colour of the square at texel (0, 0) and its diagonal neighbours.
+        a: Vec3,
+        /// Colour of the other squares.
+        b: Vec3,
+    },
     /// A running-bond brick wall: `rows` courses of `columns` bricks, every other course
     /// shifted by half a brick, joints `mortar` (a fraction of a course's height) wide.
     /// Bricks vary slightly in shade, from `seed`. Tiles seamlessly.
     Bricks {
+        /// Courses of bricks from bottom to top.
         rows: u32,
+        /// Bricks per course.
         columns: u32,
+        /// Joint width as a fraction of a course's height, in `[0, 0.5]`.
         mortar: f32,
+        /// Mean colour of a brick; each brick's shade varies around it.
         brick: Vec3,
+        /// Colour of the joints.
         mortar_color: Vec3,
+        /// Chooses the shade of every brick.
         seed: u32,
     },
     /// Marble: `a` with veins of `b` running along v, bent by `turbulence` times a sum of
     /// periodic value noise of base frequency `scale` (so the texture tiles).
     Marble {
+        /// Veins across the texture, and the noise's base frequency.
         scale: u32,
+        /// How far the noise bends the veins; 0 gives straight stripes.
         turbulence: f32,
+        /// Colour of the stone.
         a: Vec3,
+        /// Colour of the veins.
         b: Vec3,
+        /// Chooses the noise.
         seed: u32,
     },
 }
@@ -238,6 +390,82 @@ fn value_noise(seed: u32, period: u32, u: f32, v: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `bytes` written to a fresh temporary file called `name`.
+    fn temp_file(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("raypack-sniff-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    fn png_bytes(img: &image::RgbImage) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut bytes), ImageFormat::Png)
+            .unwrap();
+        bytes
+    }
+
+    /// An uncompressed true-colour TGA of `w x h` BGR texels, rows from the top.
+    fn tga_bytes(w: u16, h: u16, bgr: &[u8]) -> Vec<u8> {
+        let mut b = vec![0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+        b.extend_from_slice(&w.to_le_bytes());
+        b.extend_from_slice(&h.to_le_bytes());
+        b.extend_from_slice(&[24, 0x20]);
+        b.extend_from_slice(bgr);
+        b
+    }
+
+    #[test]
+    fn the_format_comes_from_the_bytes_not_the_name() {
+        let red = image::RgbImage::from_raw(1, 1, vec![255, 0, 0]).unwrap();
+        let t = load(&temp_file("red.jpg", &png_bytes(&red))).unwrap();
+        assert_eq!(t.texels, vec![Vec3::X], "a PNG named .jpg");
+        let t = load(&temp_file(
+            "green.png",
+            &tga_bytes(2, 1, &[0, 255, 0, 0, 255, 0]),
+        ))
+        .unwrap();
+        assert_eq!(t.texels, vec![Vec3::Y; 2], "a TGA named .png");
+        let t = load(&temp_file("blue", &tga_bytes(1, 1, &[255, 0, 0]))).unwrap();
+        assert_eq!(t.texels, vec![Vec3::Z], "a TGA without extension");
+    }
+
+    #[test]
+    fn non_images_are_named_for_what_they_are() {
+        assert_eq!(sniff(b""), Sniffed::Empty);
+        assert_eq!(sniff(b"GIF89a\x01\x00"), Sniffed::Unsupported("GIF"));
+        assert_eq!(
+            sniff(b"\x76\x2f\x31\x01...."),
+            Sniffed::Unsupported("OpenEXR")
+        );
+        assert_eq!(
+            sniff(b"%PDF-1.7\n"),
+            Sniffed::Other("a PDF document".into())
+        );
+        assert_eq!(
+            sniff(b"\n\n  v 1 0 0\nv 0 1 0\n"),
+            Sniffed::Other("text (`v 1 0 0`)".into())
+        );
+        // A character cut by the end of the sniffed bytes is still text.
+        assert_eq!(
+            sniff("caf\u{e9}".as_bytes().split_last().unwrap().1),
+            Sniffed::Other("text (`caf`)".into())
+        );
+        let counting: Vec<u8> = (0..40).collect();
+        assert_eq!(
+            sniff(&counting),
+            Sniffed::Other("unrecognised data (first bytes 00 01 02 03 04 05 06 07)".into())
+        );
+        assert_eq!(
+            sniff(&tga_bytes(1, 1, &[0; 3])),
+            Sniffed::Image(ImageFormat::Tga)
+        );
+        let mut mapped_without_map = tga_bytes(1, 1, &[0; 3]);
+        mapped_without_map[2] = 9;
+        assert!(matches!(sniff(&mapped_without_map), Sniffed::Other(_)));
+    }
 
     #[test]
     fn png_is_decoded_to_linear_with_the_top_row_at_v_1() {

@@ -21,6 +21,8 @@ use crate::scene::Aabb;
 pub use build::{BuildParams, BuildStats, BuilderKind};
 use node::{AlignedNodes, KdNode};
 
+/// A SAH kd-tree over one scene's bounded primitives, with the planes beside it. Built
+/// once ([`KdTree::build`]), then read-only and shared by every tracing thread.
 pub struct KdTree {
     /// Root is `nodes[0]`; the array starts on a 64-byte boundary.
     pub(crate) nodes: AlignedNodes,
@@ -37,11 +39,17 @@ pub struct KdTree {
 /// Shape and cost figures of a built tree (`raypack info`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TreeStats {
+    /// What the build recorded (time, depth limit, primitives in the tree).
     pub build: BuildStats,
+    /// Inner nodes and leaves.
     pub nodes: u32,
+    /// Leaves, empty ones included.
     pub leaves: u32,
+    /// Leaves without primitives: the empty space the SAH cut off.
     pub empty_leaves: u32,
+    /// Depth of the deepest leaf (the root is at depth 0).
     pub max_leaf_depth: u32,
+    /// Mean depth over all leaves.
     pub mean_leaf_depth: f64,
     /// Over non-empty leaves.
     pub mean_prims_per_leaf: f64,
@@ -50,9 +58,13 @@ pub struct TreeStats {
     /// Expected cost of a random ray under the build's cost model:
     /// `sum K_T SA(inner) / SA(root) + sum K_I n SA(leaf) / SA(root)`.
     pub sah_cost: f64,
+    /// Bytes of the node array.
     pub node_bytes: usize,
+    /// Bytes of the leaf table.
     pub leaf_bytes: usize,
+    /// Bytes of the leaves' primitive index lists.
     pub index_bytes: usize,
+    /// Bytes of the TriAccel records.
     pub triaccel_bytes: usize,
 }
 
@@ -72,10 +84,12 @@ impl KdTree {
         &self.prim_indices
     }
 
+    /// The primitive records the leaves' ids refer to.
     pub fn prims(&self) -> &Prims {
         &self.prims
     }
 
+    /// What the build recorded.
     pub fn build_stats(&self) -> &BuildStats {
         &self.build_stats
     }

@@ -13,6 +13,8 @@
 /// Axis value that marks a leaf.
 const LEAF: u32 = 3;
 
+/// One node in 8 bytes: the split position and a word holding the axis (or the leaf
+/// mark) in 2 bits and a 30-bit child-pair or leaf index. Eight fit a cache line.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct KdNode {
@@ -48,6 +50,7 @@ impl KdNode {
         }
     }
 
+    /// True for a leaf, false for an inner node.
     #[inline]
     pub fn is_leaf(&self) -> bool {
         self.bits & 3 == LEAF
