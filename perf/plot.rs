@@ -7,7 +7,8 @@
 //!         --out perf/scaling.png perf/scaling/*.json
 //!
 //! Each file is one scene (e.g. `spd:balls:5`); files whose scenes share a name before
-//! the size (`spd:balls`) form one series. Left: build seconds against primitives
+//! the size (`spd:balls`) and were built by the same builder (`exact`, `fast`) form one
+//! series. Left: build seconds against primitives
 //! (log-log). Right: median Mrays/s against primitives (log x), one line per series, set
 //! and mode, at the thread count given by `--threads` (default 1). Text is drawn with a
 //! TrueType font (`--font`, default DejaVu Sans).
@@ -71,11 +72,15 @@ fn read_point(path: &PathBuf, threads: u64) -> anyhow::Result<Point> {
             .with_context(|| format!("{}: no `{k}`", path.display()))
     };
     let scene = v["scene"].as_str().unwrap_or("?");
-    let series = match scene.rsplit_once(':') {
+    let base = match scene.rsplit_once(':') {
         Some((head, size)) if size.parse::<u32>().is_ok() => head.trim_start_matches("spd:"),
         _ => scene,
-    }
-    .to_string();
+    };
+    // Files of `bench --builder B` form a series per builder.
+    let series = match v["builder"].as_str() {
+        Some(builder) => format!("{base} {builder}"),
+        None => base.to_string(),
+    };
     let rates = v["results"]
         .as_array()
         .with_context(|| format!("{}: no `results`", path.display()))?

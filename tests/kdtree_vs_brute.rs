@@ -1,6 +1,9 @@
 //! The kd-tree against the brute-force oracle, ray by ray: the same closest hit (same
 //! primitive, `t`, `u`, `v` bit-identical) and the same any-hit answer, on generated
-//! stress meshes and the benchmark scenes; plus determinism and parallel == serial.
+//! stress meshes and the benchmark scenes, for both builders (the fast one also with
+//! binning pushed down to tiny nodes, so every stress mesh goes through it); plus
+//! determinism and parallel == serial, and the fast tree's SAH cost against the exact
+//! tree's.
 
 mod common;
 
@@ -10,7 +13,7 @@ use common::{
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
-use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::accel::kdtree::{BuildParams, BuilderKind, KdTree};
 use raypack::ray::Ray;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane};
@@ -21,6 +24,29 @@ fn build_checked(g: &Geometry, params: &BuildParams) -> KdTree {
         panic!("invalid tree: {e}");
     }
     tree
+}
+
+/// The builds every scene is checked with: the exact builder, the fast one as shipped,
+/// and the fast one binning every node of 8 primitives or more.
+fn builds() -> [(BuildParams, &'static str); 3] {
+    [
+        (
+            BuildParams {
+                builder: BuilderKind::Exact,
+                ..BuildParams::default()
+            },
+            "exact",
+        ),
+        (BuildParams::default(), "fast"),
+        (
+            BuildParams {
+                builder: BuilderKind::Fast,
+                sweep_below: 8,
+                ..BuildParams::default()
+            },
+            "fast, binning down to 8",
+        ),
+    ]
 }
 
 fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
@@ -61,7 +87,27 @@ fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -
 /// Builds `g`, checks it, and compares the tree with brute force on random and
 /// adversarial rays and on the camera rays of `camera` (64 x 48).
 fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what: &str) {
-    let tree = build_checked(g, &BuildParams::default());
+    for (params, builder) in builds() {
+        check_scene_with(
+            g,
+            camera,
+            seed,
+            ray_count,
+            &params,
+            &format!("{what}, {builder}"),
+        );
+    }
+}
+
+fn check_scene_with(
+    g: &Geometry,
+    camera: &Camera,
+    seed: u64,
+    ray_count: usize,
+    params: &BuildParams,
+    what: &str,
+) {
+    let tree = build_checked(g, params);
     let brute = BruteForce::new(g);
     let b = g.bounds();
     let b = if b.is_empty() {
@@ -162,19 +208,37 @@ fn empty_and_planes_only_scenes() {
 }
 
 #[test]
-fn build_is_deterministic_and_parallel_equals_serial() {
+fn exact_build_is_deterministic_and_parallel_equals_serial() {
+    parallel_equals_serial(BuildParams {
+        builder: BuilderKind::Exact,
+        ..BuildParams::default()
+    });
+}
+
+#[test]
+fn fast_build_is_deterministic_and_parallel_equals_serial() {
+    // 70,000 primitives: the top nodes bin and partition in parallel chunks.
+    parallel_equals_serial(BuildParams {
+        builder: BuilderKind::Fast,
+        sweep_below: 512,
+        ..BuildParams::default()
+    });
+}
+
+fn parallel_equals_serial(params: BuildParams) {
     let g = generate::merge(&[
-        generate::random_soup(30_000, 0.05, 51),
+        generate::random_soup(70_000, 0.02, 51),
         generate::axis_aligned_grid(5),
+        mixed_primitives(),
     ]);
     let serial = BuildParams {
         parallel: false,
-        ..BuildParams::default()
+        ..params.clone()
     };
     let parallel = BuildParams {
         parallel: true,
         parallel_min_prims: 64,
-        ..BuildParams::default()
+        ..params
     };
     let a = build_checked(&g, &serial);
     let b = build_checked(&g, &serial);
@@ -203,14 +267,60 @@ fn build_is_deterministic_and_parallel_equals_serial() {
     }
 }
 
+#[test]
+fn fast_tree_costs_at_most_one_percent_more_than_the_exact_tree() {
+    for (g, what) in [
+        (generate::random_soup(40_000, 0.03, 61), "soup"),
+        (
+            generate::tessellated_sphere(Vec3::ZERO, 1.0, 96, 128),
+            "sphere",
+        ),
+    ] {
+        let exact = BuildParams {
+            builder: BuilderKind::Exact,
+            ..BuildParams::default()
+        };
+        let fast = BuildParams {
+            sweep_below: 1024,
+            ..BuildParams::default()
+        };
+        let exact_cost = build_checked(&g, &exact).stats(&exact).sah_cost;
+        let fast_cost = build_checked(&g, &fast).stats(&fast).sah_cost;
+        assert!(
+            fast_cost <= exact_cost * 1.01,
+            "{what}: fast tree SAH {fast_cost}, exact {exact_cost}"
+        );
+    }
+}
+
 /// Camera rays of a benchmark scene (every `stride`-th pixel of 1024x768) and shadow
-/// rays toward a point above the scene, against brute force.
+/// rays toward a point above the scene, against brute force, for each builder.
 fn check_shared_scene(name: &str, stride: usize) {
     let (g, camera) = shared_scene(name);
-    let tree = build_checked(&g, &BuildParams::default());
     let brute = BruteForce::new(&g);
-    let rays = camera_rays(&camera, 1024, 768, stride);
-    let hits = assert_matches(&tree, &brute, &rays, name);
+    for (params, builder) in builds() {
+        check_shared_scene_with(
+            &g,
+            &camera,
+            &brute,
+            &params,
+            stride,
+            &format!("{name}, {builder}"),
+        );
+    }
+}
+
+fn check_shared_scene_with(
+    g: &Geometry,
+    camera: &Camera,
+    brute: &BruteForce,
+    params: &BuildParams,
+    stride: usize,
+    name: &str,
+) {
+    let tree = build_checked(g, params);
+    let rays = camera_rays(camera, 1024, 768, stride);
+    let hits = assert_matches(&tree, brute, &rays, name);
     assert!(
         hits > rays.len() / 10,
         "{name}: only {hits} of {} rays hit",

@@ -245,6 +245,14 @@ impl TriAccel {
         (up(err), up(mag))
     }
 
+    /// True for the record of a degenerate triangle (zero area, or corners too large
+    /// for its plane to be finite): [`TriAccel::new`] zeroes its edge equations, so no
+    /// ray hits it and the kd-tree leaves it out.
+    #[inline]
+    pub fn is_degenerate(&self) -> bool {
+        self.b_nu == 0.0 && self.b_nv == 0.0 && self.c_nu == 0.0 && self.c_nv == 0.0
+    }
+
     /// Records for every triangle of `geometry`, in id order.
     pub fn build_all(geometry: &Geometry) -> Vec<TriAccel> {
         (0..geometry.triangles.len() as u32)
@@ -325,7 +333,9 @@ mod tests {
     fn degenerate_triangles_are_never_hit() {
         let corners = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
         let acc = TriAccel::new(corners[0], corners[1], corners[2]);
+        assert!(acc.is_degenerate());
         let ray = Ray::new(Vec3::new(0.5, 0.0, -1.0), Vec3::Z, 0.0, f32::INFINITY);
         assert!(acc.intersect(&ray, ray.t_max, &corners).is_none());
+        assert!(!TriAccel::new(Vec3::ZERO, Vec3::X, Vec3::Y).is_degenerate());
     }
 }

@@ -122,6 +122,8 @@ pub struct Report {
     pub spheres: usize,
     pub primitives: u32,
     pub build_seconds: f64,
+    /// `exact` or `fast` (`--builder`).
+    pub builder: String,
     /// The SAH costs the tree was built with: `[K_T, K_I, empty bonus]`.
     pub sah_costs: [f32; 3],
     pub width: u32,
@@ -336,10 +338,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("ray sets read from {}", dir.display());
     }
     println!(
-        "raypack bench {}: {}; {} (K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
+        "raypack bench {}: {}; {} ({} builder, K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
         args.scene,
         super::primitive_counts(&scene.geometry),
         ACCEL_NAME,
+        args.tree.builder,
         args.tree.traversal_cost,
         args.tree.intersection_cost,
         args.tree.empty_bonus,
@@ -510,6 +513,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             spheres: scene.geometry.spheres.len(),
             primitives: scene.geometry.prim_count(),
             build_seconds,
+            builder: args.tree.builder.to_string(),
             sah_costs: [
                 args.tree.traversal_cost,
                 args.tree.intersection_cost,

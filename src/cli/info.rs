@@ -4,11 +4,18 @@
 //!
 //! SCENE is read as `raypack bench` reads it (a TOML scene, an OBJ mesh, or a name from
 //! ../shared/scenes/cameras.toml), and the primary rays are RAYS.md's standard set.
+//!
+//! The build's peak extra memory is the growth of the process's peak resident set
+//! during a build, from the resident set just before it (Linux: the peak is reset
+//! through `/proc/self/clear_refs`, read from `/proc/self/status`); it includes the
+//! finished tree. Elsewhere it is reported as unknown.
 
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::rayset::{scenes, standard};
+use serde::Serialize;
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
@@ -26,9 +33,90 @@ pub struct Args {
     /// Also trace the camera's 1024x768 primary rays on one thread (scalar path).
     #[arg(long)]
     pub primary: bool,
+    /// Also write what is printed, and the build's peak extra memory, as JSON to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(Serialize, Debug)]
+struct Seconds {
+    median: f64,
+    min: f64,
+    all: Vec<f64>,
+}
+
+#[derive(Serialize, Debug)]
+struct Sah {
+    cost: f64,
+    traversal_cost: f32,
+    intersection_cost: f32,
+    empty_bonus: f32,
+}
+
+#[derive(Serialize, Debug)]
+struct Part {
+    bytes: usize,
+    bytes_per_triangle: f64,
+}
+
+#[derive(Serialize, Debug)]
+struct Primary {
+    mrays_per_s: f64,
+    rays: usize,
+    hit_fraction: f64,
+    checksum: String,
+}
+
+/// Everything `info` prints, for scripts (`--json`).
+#[derive(Serialize, Debug)]
+struct Report {
+    scene: String,
+    builder: String,
+    threads: usize,
+    build_seconds: Seconds,
+    /// Largest growth of the peak resident set over one build (bytes), tree included;
+    /// `null` where the operating system does not say.
+    build_peak_extra_bytes: Option<u64>,
+    triangles: usize,
+    spheres: usize,
+    boxes: usize,
+    planes: usize,
+    in_tree: u32,
+    nodes: u32,
+    leaves: u32,
+    empty_leaves: u32,
+    max_leaf_depth: u32,
+    mean_leaf_depth: f64,
+    depth_limit: u32,
+    mean_prims_per_leaf: f64,
+    refs_per_prim: f64,
+    sah: Sah,
+    memory: std::collections::BTreeMap<&'static str, Part>,
+    primary: Option<Primary>,
+}
+
+/// A field of `/proc/self/status` in bytes (`VmRSS`, `VmHWM`).
+fn proc_status_bytes(field: &str) -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
+    let kib: u64 = line[field.len()..]
+        .trim_start_matches(':')
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib * 1024)
+}
+
+/// Resets the peak resident set to the current one; returns the current one.
+fn reset_peak() -> Option<u64> {
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    proc_status_bytes("VmRSS")
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::check_outputs([("--json", args.json.as_ref())])?;
     let scene = scenes::load(&args.scene)?;
     super::warn(&scene.warnings);
     let geometry = &scene.geometry;
@@ -43,12 +131,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .context("starting the build threads")?;
     let mut seconds = Vec::new();
     let mut tree = None;
+    let mut peak_extra: Option<u64> = None;
     for _ in 0..args.repeat.max(1) {
+        drop(tree.take());
+        let before = reset_peak();
         let start = Instant::now();
         tree = Some(pool.install(|| KdTree::build_with(geometry, &params)));
         seconds.push(start.elapsed().as_secs_f64());
+        let extra = before
+            .zip(proc_status_bytes("VmHWM"))
+            .map(|(before, peak)| peak.saturating_sub(before));
+        peak_extra = peak_extra.max(extra);
     }
     let tree = tree.expect("at least one build");
+    let all_seconds = seconds.clone();
     seconds.sort_by(f64::total_cmp);
     let s = tree.stats(&params);
     let tris = geometry.triangles.len();
@@ -70,12 +166,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         super::count(degenerate, "degenerate triangle"),
     );
     println!(
-        "build            {:.3} s median of {} on {} (min {:.3} s)",
+        "build            {:.3} s median of {} on {} (min {:.3} s), {} builder",
         seconds[seconds.len() / 2],
         super::count(seconds.len(), "build"),
         super::count(threads, "thread"),
-        seconds[0]
+        seconds[0],
+        params.builder
     );
+    match peak_extra {
+        Some(bytes) => println!(
+            "build peak extra {:.2} MiB (peak resident set over the build, tree included)",
+            bytes as f64 / (1 << 20) as f64
+        ),
+        None => println!("build peak extra unknown"),
+    }
     println!("nodes            {}", s.nodes);
     println!("leaves           {} ({} empty)", s.leaves, s.empty_leaves);
     println!(
@@ -91,19 +195,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.sah_cost, params.traversal_cost, params.intersection_cost
     );
     let total = s.node_bytes + s.leaf_bytes + s.index_bytes + s.triaccel_bytes;
-    for (name, bytes) in [
-        ("nodes", s.node_bytes),
-        ("leaf table", s.leaf_bytes),
-        ("index lists", s.index_bytes),
-        ("TriAccel", s.triaccel_bytes),
-        ("total", total),
+    let mut memory = std::collections::BTreeMap::new();
+    for (name, key, bytes) in [
+        ("nodes", "nodes", s.node_bytes),
+        ("leaf table", "leaf_table", s.leaf_bytes),
+        ("index lists", "index_lists", s.index_bytes),
+        ("TriAccel", "triaccel", s.triaccel_bytes),
+        ("total", "total", total),
     ] {
         println!(
             "memory {name:<11} {:>10.2} MiB  {:>6.1} bytes/triangle",
             bytes as f64 / (1 << 20) as f64,
             per_tri(bytes)
         );
+        memory.insert(
+            key,
+            Part {
+                bytes,
+                bytes_per_triangle: per_tri(bytes),
+            },
+        );
     }
+    let mut primary = None;
     if args.primary {
         let (w, h) = (standard::WIDTH, standard::HEIGHT);
         let rays = standard::primary(&scene.view, w, h)?.rays;
@@ -123,13 +236,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     });
             best = best.min(start.elapsed().as_secs_f64());
         }
+        let rate = rays.len() as f64 / best / 1e6;
+        let hit_fraction = hits as f64 / rays.len() as f64;
         println!(
-            "primary rays     {:.2} Mrays/s scalar, 1 thread, best of 3 ({}x{}, {:.1}% hit, checksum {checksum:016x})",
-            rays.len() as f64 / best / 1e6,
-            w,
-            h,
-            100.0 * hits as f64 / rays.len() as f64
+            "primary rays     {rate:.2} Mrays/s scalar, 1 thread, best of 3 ({w}x{h}, {:.1}% hit, checksum {checksum:016x})",
+            100.0 * hit_fraction
         );
+        primary = Some(Primary {
+            mrays_per_s: rate,
+            rays: rays.len(),
+            hit_fraction,
+            checksum: format!("{checksum:016x}"),
+        });
+    }
+    if let Some(path) = &args.json {
+        let report = Report {
+            scene: args.scene.clone(),
+            builder: params.builder.to_string(),
+            threads,
+            build_seconds: Seconds {
+                median: seconds[seconds.len() / 2],
+                min: seconds[0],
+                all: all_seconds,
+            },
+            build_peak_extra_bytes: peak_extra,
+            triangles: tris,
+            spheres: geometry.spheres.len(),
+            boxes: geometry.boxes.len(),
+            planes: geometry.planes.len(),
+            in_tree: s.build.tree_prims,
+            nodes: s.nodes,
+            leaves: s.leaves,
+            empty_leaves: s.empty_leaves,
+            max_leaf_depth: s.max_leaf_depth,
+            mean_leaf_depth: s.mean_leaf_depth,
+            depth_limit: s.build.max_depth_limit,
+            mean_prims_per_leaf: s.mean_prims_per_leaf,
+            refs_per_prim: s.refs_per_prim,
+            sah: Sah {
+                cost: s.sah_cost,
+                traversal_cost: params.traversal_cost,
+                intersection_cost: params.intersection_cost,
+                empty_bonus: params.empty_bonus,
+            },
+            memory,
+            primary,
+        };
+        super::write_json(path, &report)?;
     }
     Ok(())
 }

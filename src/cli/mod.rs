@@ -8,7 +8,7 @@ pub mod trace;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use raypack::accel::kdtree::BuildParams;
+use raypack::accel::kdtree::{BuildParams, BuilderKind};
 use raypack::scene::file::{MAX_PIXELS, MAX_SIDE};
 use std::path::{Path, PathBuf};
 
@@ -73,6 +73,17 @@ pub struct TreeArgs {
     /// Share of the cost forgiven for cutting off empty space.
     #[arg(long, default_value_t = BuildParams::default().empty_bonus)]
     pub empty_bonus: f32,
+    /// The kd-tree builder: exact (Wald & Havran's sweep at every node, the reference)
+    /// or fast (binned SAH for large nodes, the sweep below --sweep-below primitives).
+    #[arg(long, default_value_t = BuilderKind::default(), value_parser = parse_builder)]
+    pub builder: BuilderKind,
+    /// The fast builder's switch to the exact sweep, in primitives per node.
+    #[arg(long, default_value_t = BuildParams::default().sweep_below)]
+    pub sweep_below: u32,
+}
+
+fn parse_builder(s: &str) -> Result<BuilderKind, String> {
+    s.parse()
 }
 
 impl TreeArgs {
@@ -93,6 +104,8 @@ impl TreeArgs {
             traversal_cost: self.traversal_cost,
             intersection_cost: self.intersection_cost,
             empty_bonus: self.empty_bonus,
+            builder: self.builder,
+            sweep_below: self.sweep_below,
             ..BuildParams::default()
         })
     }

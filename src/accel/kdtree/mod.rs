@@ -1,4 +1,5 @@
-//! SAH kd-tree: build (Wald & Havran 2006), scalar and packet traversal.
+//! SAH kd-tree: build (binned SAH for large nodes, Wald & Havran 2006's sweep below;
+//! the sweep alone as the reference), scalar and packet traversal.
 //!
 //! Layout: `nodes` is one contiguous array of 8-byte [`node::KdNode`]s, children in
 //! pairs; a leaf holds its `[first, count]`, a contiguous run of `prim_indices`
@@ -19,7 +20,7 @@ pub mod traverse_tile;
 
 use super::Prims;
 use crate::scene::Aabb;
-pub use build::{BuildParams, BuildStats};
+pub use build::{BuildParams, BuildStats, BuilderKind};
 use node::{AlignedNodes, KdNode};
 
 /// A SAH kd-tree over one scene's bounded primitives, with the planes beside it. Built

@@ -1,0 +1,401 @@
+//! Stage: accel. The SAH kd-tree builders.
+//!
+//! - `exact` (`sweep.rs`): Wald & Havran's O(N log N) event sweep, "On building fast
+//!   kd-trees for ray tracing, and on doing that in O(N log N)" (2006): every plane
+//!   through a primitive's bounds is priced. The reference.
+//! - `fast` (`binned.rs`, the default): min-max binning of the SAH (Shevtsov, Soupikov &
+//!   Kapustin, "Highly parallel fast kd-tree construction for interactive ray tracing
+//!   of dynamic scenes", 2007) for large nodes, parallel over primitives at the top;
+//!   below [`BuildParams::sweep_below`] primitives a node's events are made and sorted
+//!   and the exact sweep finishes its subtree.
+//! - Both use perfect splits ([`clip`]): a straddler's bounds in each child are those of
+//!   its part inside the child. Spheres use the squared-distance test, boxes their
+//!   intersection with the child.
+//! - Degenerate triangles (which no ray can hit) and non-finite primitives are left out;
+//!   ids never change. Planes are never in the tree.
+//! - Nodes are laid out depth first: a node's two children are allocated as a pair, then
+//!   the left subtree, then the right. Large subtrees are built in parallel with rayon;
+//!   the right subtree then goes into its own buffers that are appended, relocated, after
+//!   the left one, so the parallel tree is the serial tree, node for node. Nothing a node
+//!   decides depends on the thread count (counts are integers, summed in any order).
+
+mod binned;
+pub mod clip;
+mod small;
+mod sweep;
+
+use super::KdTree;
+use super::node::{KdNode, MAX_INDEX};
+use crate::accel::Prims;
+use crate::scene::{Aabb, Geometry, PrimRef};
+use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
+use std::time::Instant;
+
+/// Which builder makes the tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BuilderKind {
+    /// Wald & Havran's event sweep at every node: the reference tree.
+    Exact,
+    /// Min-max binning for large nodes, the exact sweep below
+    /// [`BuildParams::sweep_below`] primitives.
+    #[default]
+    Fast,
+}
+
+impl BuilderKind {
+    /// The name `--builder` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            BuilderKind::Exact => "exact",
+            BuilderKind::Fast => "fast",
+        }
+    }
+}
+
+impl std::str::FromStr for BuilderKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "exact" => Ok(BuilderKind::Exact),
+            "fast" => Ok(BuilderKind::Fast),
+            _ => Err(format!("unknown builder {s:?} (expected exact or fast)")),
+        }
+    }
+}
+
+impl std::fmt::Display for BuilderKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The cost model and limits of the build.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildParams {
+    /// Cost of one traversal step (`K_T` in Wald & Havran, who use 15 with `K_I` = 20).
+    /// The default is 30: on the benchmark scenes it halves the nodes and cuts the build
+    /// by a quarter, and the packet path traces primary rays 5-9% faster in the smaller
+    /// tree while the scalar path loses about as much (perf/kdtree.md, "Cost constants").
+    pub traversal_cost: f32,
+    /// Cost of one primitive test (`K_I`).
+    pub intersection_cost: f32,
+    /// Fraction of the cost forgiven when a split cuts off empty space (1 - lambda).
+    pub empty_bonus: f32,
+    /// Depth limit; `None` gives `8 + 1.3 log2(N)`.
+    pub max_depth: Option<u32>,
+    /// Build subtrees in parallel on the current rayon pool.
+    pub parallel: bool,
+    /// A node with at least this many primitives builds its two children in parallel.
+    pub parallel_min_prims: u32,
+    /// Which builder makes the tree (both keep every other parameter's meaning).
+    pub builder: BuilderKind,
+    /// The fast builder hands a node with fewer primitives than this to the exact sweep
+    /// (perf/kdtree.md, "Fast build", measures where binning stops paying).
+    pub sweep_below: u32,
+}
+
+impl Default for BuildParams {
+    fn default() -> Self {
+        BuildParams {
+            traversal_cost: 30.0,
+            intersection_cost: 20.0,
+            empty_bonus: 0.2,
+            max_depth: None,
+            parallel: true,
+            parallel_min_prims: 4096,
+            builder: BuilderKind::Fast,
+            sweep_below: 4096,
+        }
+    }
+}
+
+/// The depth limit can never exceed this, so traversal stacks have a fixed size.
+pub const MAX_DEPTH: u32 = 60;
+
+/// The default depth limit for `prim_count` primitives: `8 + 1.3 log2(N)`.
+pub fn default_max_depth(prim_count: u32) -> u32 {
+    let d = 8.0 + 1.3 * (prim_count.max(1) as f32).log2();
+    (d.round() as u32).min(MAX_DEPTH)
+}
+
+/// The arrays being written, in depth-first order.
+#[derive(Default)]
+struct Out {
+    nodes: Vec<KdNode>,
+    leaves: Vec<[u32; 2]>,
+    prim_indices: Vec<u32>,
+}
+
+impl Out {
+    /// Buffers for a subtree built apart (its root at `nodes[0]`), to be appended.
+    fn apart() -> Out {
+        Out {
+            nodes: vec![KdNode::leaf(0)],
+            ..Out::default()
+        }
+    }
+
+    /// Makes the node at `slot` an inner node and appends its child pair (leaves for
+    /// now); returns the left child's index.
+    fn inner(&mut self, slot: usize, axis: usize, pos: f32) -> usize {
+        let first = self.nodes.len();
+        assert!(first < MAX_INDEX as usize, "kd-tree: too many nodes");
+        self.nodes[slot] = KdNode::inner(axis as u32, pos, first as u32);
+        self.nodes.extend([KdNode::leaf(0), KdNode::leaf(0)]);
+        first
+    }
+
+    /// Makes the node at `slot` a leaf holding `prims` in ascending id order.
+    fn leaf(&mut self, slot: usize, prims: impl Iterator<Item = u32>) {
+        let first = self.prim_indices.len();
+        self.prim_indices.extend(prims);
+        self.prim_indices[first..].sort_unstable();
+        let leaf = self.leaves.len();
+        assert!(leaf <= MAX_INDEX as usize, "kd-tree: too many leaves");
+        self.leaves
+            .push([first as u32, (self.prim_indices.len() - first) as u32]);
+        self.nodes[slot] = KdNode::leaf(leaf as u32);
+    }
+
+    /// Appends `sub`, a subtree built into its own buffers with its root at `sub.nodes[0]`,
+    /// putting its root into `slot`.
+    fn append(&mut self, sub: Out, slot: usize) {
+        let node_base = self.nodes.len() as u32 - 1;
+        let leaf_base = self.leaves.len() as u32;
+        let index_base = self.prim_indices.len() as u32;
+        self.nodes[slot] = relocate(&sub.nodes[0], node_base, leaf_base);
+        self.nodes.extend(
+            sub.nodes[1..]
+                .iter()
+                .map(|n| relocate(n, node_base, leaf_base)),
+        );
+        self.leaves.extend(
+            sub.leaves
+                .iter()
+                .map(|&[first, count]| [first + index_base, count]),
+        );
+        self.prim_indices.extend_from_slice(&sub.prim_indices);
+    }
+}
+
+/// `n` moved from its own buffers to ones where its child pairs start `node_base` and
+/// its leaves `leaf_base` later.
+fn relocate(n: &KdNode, node_base: u32, leaf_base: u32) -> KdNode {
+    if n.is_leaf() {
+        KdNode::leaf(n.leaf_index() + leaf_base)
+    } else {
+        KdNode::inner(n.axis() as u32, n.split, n.children() + node_base)
+    }
+}
+
+/// What the build reads, shared by all subtrees.
+struct Builder<'a> {
+    g: &'a Geometry,
+    params: &'a BuildParams,
+    max_depth: u32,
+    /// Size of the classification scratch (one byte per bounded primitive).
+    prim_total: usize,
+    /// Sweep buffers that subtrees built apart have given back.
+    spare: std::sync::Mutex<Vec<sweep::SweepSpace>>,
+}
+
+/// Figures about one build, for `raypack info` and perf/.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildStats {
+    pub build_seconds: f64,
+    /// Primitives put in the tree (degenerate triangles are left out).
+    pub tree_prims: u32,
+    pub max_depth_limit: u32,
+    pub builder: BuilderKind,
+}
+
+/// Bounds of a bounded primitive, or `None` when it must stay out of the tree: a triangle
+/// no ray can hit (zero area) or anything with non-finite coordinates.
+fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
+    if let PrimRef::Triangle(t) = g.prim_ref(prim)
+        && prims.tris[t as usize].is_degenerate()
+    {
+        return None;
+    }
+    let b = g.prim_bounds(prim);
+    (b.min.is_finite() && b.max.is_finite() && !b.is_empty()).then_some(b)
+}
+
+/// The cells on either side of the plane `pos` on `axis`.
+fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
+    let (mut left, mut right) = (*cell, *cell);
+    left.max[axis] = pos;
+    right.min[axis] = pos;
+    (left, right)
+}
+
+/// The SAH of planes on one axis of a cell: `K_T + K_I (P_left n_left + P_right n_right)`,
+/// the probabilities being the children's areas over the cell's, times `1 - empty_bonus`
+/// when a side is empty. Both builders price planes with it.
+#[derive(Clone, Copy)]
+struct PlaneCost {
+    lo: f32,
+    hi: f32,
+    /// Area of the two faces normal to the axis, and the perimeter that the plane's
+    /// position scales (both halved, as is the cell's area).
+    cap: f32,
+    perimeter: f32,
+    inv_area: f32,
+    k_t: f32,
+    k_i: f32,
+    bonus: f32,
+}
+
+impl PlaneCost {
+    /// `None` when the cell has no area (or a NaN one).
+    fn new(cell: &Aabb, axis: usize, params: &BuildParams) -> Option<PlaneCost> {
+        let e = cell.max - cell.min;
+        let area = e.x * e.y + e.y * e.z + e.z * e.x;
+        if area.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        Some(PlaneCost {
+            lo: cell.min[axis],
+            hi: cell.max[axis],
+            cap: e[u] * e[v],
+            perimeter: e[u] + e[v],
+            inv_area: 1.0 / area,
+            k_t: params.traversal_cost,
+            k_i: params.intersection_cost,
+            bonus: 1.0 - params.empty_bonus,
+        })
+    }
+
+    /// The children's hit probabilities for the plane at `pos`.
+    #[inline]
+    fn probabilities(&self, pos: f32) -> [f32; 2] {
+        [
+            (self.cap + (pos - self.lo) * self.perimeter) * self.inv_area,
+            (self.cap + (self.hi - pos) * self.perimeter) * self.inv_area,
+        ]
+    }
+
+    /// The cost of a plane with `probabilities` and `n_left`, `n_right` primitives.
+    #[inline]
+    fn cost(&self, [p_left, p_right]: [f32; 2], n_left: u32, n_right: u32) -> f32 {
+        let c = self.k_t + self.k_i * (p_left * n_left as f32 + p_right * n_right as f32);
+        if n_left == 0 || n_right == 0 {
+            c * self.bonus
+        } else {
+            c
+        }
+    }
+}
+
+impl KdTree {
+    /// Builds the tree with [`BuildParams::default`].
+    pub fn build(g: &Geometry) -> KdTree {
+        KdTree::build_with(g, &BuildParams::default())
+    }
+
+    /// Builds the tree of `g`'s bounded primitives.
+    pub fn build_with(g: &Geometry, params: &BuildParams) -> KdTree {
+        let start = Instant::now();
+        let prims = Prims::new(g);
+        let bounded = g.bounded_count();
+        assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
+        let refs = binned::root_refs(g, &prims, bounded, params.parallel);
+        let cell = refs.iter().fold(Aabb::EMPTY, |c, r| c.union(&r.bounds));
+        let prim_count = refs.len() as u32;
+        let max_depth = params
+            .max_depth
+            .unwrap_or_else(|| default_max_depth(prim_count))
+            .min(MAX_DEPTH);
+        let builder = Builder {
+            g,
+            params,
+            max_depth,
+            prim_total: bounded as usize,
+            spare: Default::default(),
+        };
+        let mut out = Out::apart();
+        match params.builder {
+            BuilderKind::Exact => builder.build_swept(cell, &refs, &mut out),
+            BuilderKind::Fast => builder.build_binned(cell, refs, 0, 0, &mut out, &mut None),
+        }
+        let stats = BuildStats {
+            build_seconds: start.elapsed().as_secs_f64(),
+            tree_prims: prim_count,
+            max_depth_limit: max_depth,
+            builder: params.builder,
+        };
+        KdTree {
+            nodes: super::node::with_leaf_ranges(out.nodes, &out.leaves).into(),
+            leaves: out.leaves,
+            prim_indices: out.prim_indices,
+            prims,
+            bounds: cell,
+            build_stats: stats,
+        }
+    }
+}
+
+impl Builder<'_> {
+    /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.
+    fn clip(&self, prim: u32, cell: &Aabb) -> Option<Aabb> {
+        match self.g.prim_ref(prim) {
+            PrimRef::Triangle(t) => clip_triangle(self.g.triangle(t), cell),
+            PrimRef::Sphere(s) => {
+                let s = &self.g.spheres[s as usize];
+                let nearest = s.center.clamp(cell.min, cell.max);
+                let d2 = (nearest - s.center).length_squared();
+                // A touch of slack: an overlap lost to rounding would lose hits.
+                (d2 <= s.radius * s.radius * (1.0 + 1e-5))
+                    .then(|| intersect_boxes(&s.bounds(), cell))
+                    .filter(|b| !b.is_empty())
+            }
+            PrimRef::Box(b) => {
+                Some(intersect_boxes(&self.g.boxes[b as usize], cell)).filter(|b| !b.is_empty())
+            }
+            PrimRef::Plane(_) => None,
+        }
+    }
+
+    /// Bounds of the parts of straddler `prim` in the two children of `cell` split at
+    /// `pos` on `axis` (perfect splits); `None` for a side it does not reach.
+    fn split_prim(&self, prim: u32, cell: &Aabb, axis: usize, pos: f32) -> [Option<Aabb>; 2] {
+        match self.g.prim_ref(prim) {
+            PrimRef::Triangle(t) => split_triangle(self.g.triangle(t), cell, axis, pos),
+            _ => {
+                let (left, right) = child_cells(cell, axis, pos);
+                [self.clip(prim, &left), self.clip(prim, &right)]
+            }
+        }
+    }
+
+    /// [`Builder::split_prim`] for a straddler whose part in `cell` has bounds `part`:
+    /// a triangle is cut by the plane alone ([`split_triangle_within`]).
+    fn split_within(
+        &self,
+        prim: u32,
+        part: &Aabb,
+        cell: &Aabb,
+        axis: usize,
+        pos: f32,
+    ) -> [Option<Aabb>; 2] {
+        match self.g.prim_ref(prim) {
+            PrimRef::Triangle(t) => {
+                split_triangle_within(self.g.triangle(t), part, cell, axis, pos)
+            }
+            _ => self.split_prim(prim, cell, axis, pos),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_limit_follows_the_paper() {
+        assert_eq!(default_max_depth(1), 8);
+        assert_eq!(default_max_depth(1 << 20), 34);
+    }
+}
