@@ -251,7 +251,7 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("median") && !stdout.contains("differs"),
+        stdout.contains("Mrays/s") && !stdout.contains("differs"),
         "{stdout}"
     );
     let v: serde_json::Value =
