@@ -20,7 +20,9 @@ use crate::ray::{Hit, NO_HIT, Ray};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
-pub use standard::{LightSource, StandardSets, View};
+/// The f64 camera the ray sets are made from; it lives with the camera in `scene`.
+pub use crate::scene::View;
+pub use standard::{LightSource, StandardSets};
 pub use trace::{Checksum, Mode};
 
 /// First 8 bytes of a rays file.

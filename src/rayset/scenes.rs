@@ -11,9 +11,8 @@
 //! - `spd:NAME[:SIZE]`, one of Eric Haines' Standard Procedural Databases
 //!   ([`crate::scene::spd`]) with its published viewpoint.
 
-use super::View;
 use crate::scene::spd::{self, SpdError};
-use crate::scene::{Geometry, ObjError, SceneError, Warning};
+use crate::scene::{Geometry, ObjError, SceneError, View, Warning};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;

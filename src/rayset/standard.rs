@@ -25,7 +25,7 @@ use super::{RaySet, RaySetError, TILE, packet_pixel};
 use crate::accel::Accel;
 use crate::ray::{Hit, Ray};
 use crate::scene::file::MAX_PIXELS;
-use crate::scene::{Camera, Geometry, PrimRef};
+use crate::scene::{Geometry, PrimRef, View};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -38,37 +38,6 @@ pub const OFFSET_SCALE: f64 = 1e-4;
 pub const PCG_SEED: u64 = 42;
 pub const PCG_SEQ: u64 = 54;
 
-/// A look-at pinhole camera in f64, as the numbers are written in cameras.toml (RAYS.md).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct View {
-    pub eye: DVec3,
-    pub target: DVec3,
-    pub up: DVec3,
-    pub vfov_deg: f64,
-}
-
-impl From<&Camera> for View {
-    fn from(c: &Camera) -> View {
-        View {
-            eye: c.eye.as_dvec3(),
-            target: c.target.as_dvec3(),
-            up: c.up.as_dvec3(),
-            vfov_deg: c.vfov_deg as f64,
-        }
-    }
-}
-
-impl From<&View> for Camera {
-    fn from(v: &View) -> Camera {
-        Camera {
-            eye: v.eye.as_vec3(),
-            target: v.target.as_vec3(),
-            up: v.up.as_vec3(),
-            vfov_deg: v.vfov_deg as f32,
-        }
-    }
-}
-
 /// `forward`, `right`, `up'` of RAYS.md.
 struct Frame {
     forward: DVec3,
@@ -80,37 +49,36 @@ fn normalize(v: DVec3) -> DVec3 {
     v * (1.0 / v.length())
 }
 
-impl View {
-    fn frame(&self) -> Result<Frame, RaySetError> {
-        let bad = |reason: &str| RaySetError::BadParameter {
-            what: "camera".into(),
-            reason: reason.into(),
-        };
-        if !(self.eye.is_finite() && self.target.is_finite() && self.up.is_finite()) {
-            return Err(bad("eye, target and up must be finite"));
-        }
-        if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
-            return Err(bad("vfov_deg must be in (0, 180)"));
-        }
-        let forward = normalize(self.target - self.eye);
-        let r = forward.cross(self.up);
-        if r.length().is_nan() || r.length() <= 1e-12 {
-            return Err(bad(
-                "up is parallel to the view direction (or eye == target)",
-            ));
-        }
-        let right = normalize(r);
-        Ok(Frame {
-            forward,
-            right,
-            up: right.cross(forward),
-        })
+/// The basis of RAYS.md in f64, or why `view` has none.
+fn frame(view: &View) -> Result<Frame, RaySetError> {
+    let bad = |reason: &str| RaySetError::BadParameter {
+        what: "camera".into(),
+        reason: reason.into(),
+    };
+    if !(view.eye.is_finite() && view.target.is_finite() && view.up.is_finite()) {
+        return Err(bad("eye, target and up must be finite"));
     }
+    if !(view.vfov_deg > 0.0 && view.vfov_deg < 180.0) {
+        return Err(bad("vfov_deg must be in (0, 180)"));
+    }
+    let forward = normalize(view.target - view.eye);
+    let r = forward.cross(view.up);
+    if r.length().is_nan() || r.length() <= 1e-12 {
+        return Err(bad(
+            "up is parallel to the view direction (or eye == target)",
+        ));
+    }
+    let right = normalize(r);
+    Ok(Frame {
+        forward,
+        right,
+        up: right.cross(forward),
+    })
+}
 
-    /// The camera's true up (`up'` of RAYS.md).
-    pub fn true_up(&self) -> Result<DVec3, RaySetError> {
-        Ok(self.frame()?.up)
-    }
+/// The camera's true up (`up'` of RAYS.md).
+pub fn true_up(view: &View) -> Result<DVec3, RaySetError> {
+    Ok(frame(view)?.up)
 }
 
 fn to_ray(o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Ray {
@@ -134,7 +102,7 @@ pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetErr
             reason: format!("more than {MAX_PIXELS} pixels, the limit of scene files"),
         });
     }
-    let f = view.frame()?;
+    let f = frame(view)?;
     let h = (view.vfov_deg * std::f64::consts::PI / 180.0 / 2.0).tan();
     let (w, hh) = (width as f64, height as f64);
     let aspect = w / hh;
@@ -227,7 +195,7 @@ pub fn default_light<A: Accel + ?Sized>(
     geometry: &Geometry,
     view: &View,
 ) -> Result<(DVec3, LightSource), RaySetError> {
-    let up = view.true_up()?;
+    let up = true_up(view)?;
     let (lo, hi, diag) = scene_box(geometry);
     let ray = to_ray(view.eye, up, 0.0, f64::INFINITY);
     let (h, how) = if let Some(hit) = accel.intersect(&ray) {

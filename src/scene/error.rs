@@ -226,10 +226,14 @@ pub enum ObjError {
         /// The texture, resolved against the MTL file's folder.
         texture: PathBuf,
     },
+    /// A material's diffuse texture (`map_Kd`) could not be loaded.
     #[error("{}: material `{material}`: map_Kd", path.display())]
     Texture {
+        /// The MTL file.
         path: PathBuf,
+        /// The material whose `map_Kd` failed.
         material: String,
+        /// Why the texture failed.
         source: Box<TextureError>,
     },
     /// `tobj` and raypack's own line scan read the file differently (a reader bug, not

@@ -14,7 +14,7 @@ pub mod obj;
 pub mod spd;
 pub mod texture;
 
-pub use camera::{Camera, CameraFrame};
+pub use camera::{Camera, CameraFrame, View};
 pub use error::{DecodeError, ObjError, SceneError, TextureError, Warning};
 pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere};
 pub use light::Light;
