@@ -16,10 +16,12 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
+pub mod onb;
 pub mod output;
 pub mod ray;
 pub mod rayset;
 pub mod render;
+pub mod rng;
 pub mod scene;
 pub mod simd;
 

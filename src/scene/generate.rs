@@ -9,58 +9,9 @@
 use super::Geometry;
 use glam::Vec3;
 
-/// SplitMix64 (Steele, Lea & Flood 2014): tiny, seedable, and good enough for test
-/// geometry and ray sets.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// The generator whose sequence is fixed by `seed` alone.
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits; the other draws are built on it.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`, 24 random bits.
-    pub fn f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f32()
-    }
-
-    /// Uniform in `0..n`.
-    pub fn below(&mut self, n: u32) -> u32 {
-        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
-    }
-
-    /// A point uniform in the box `[lo, hi]`.
-    pub fn point(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
-        Vec3::new(
-            self.range(lo.x, hi.x),
-            self.range(lo.y, hi.y),
-            self.range(lo.z, hi.z),
-        )
-    }
-
-    /// A unit vector, uniform on the sphere.
-    pub fn unit_vector(&mut self) -> Vec3 {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, std::f32::consts::TAU);
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        Vec3::new(r * phi.cos(), r * phi.sin(), z)
-    }
-}
+/// The generators' random numbers (kept under this name for the tests that draw rays
+/// beside generated geometry).
+pub use crate::rng::SplitMix64 as Rng;
 
 /// Appends triangle `(a, b, c)` with its own three vertices.
 fn push_triangle(g: &mut Geometry, a: Vec3, b: Vec3, c: Vec3) {
