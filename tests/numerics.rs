@@ -7,6 +7,7 @@
 mod common;
 
 use common::closed::{leaks_packet, leaks_scalar};
+use common::hit_bits;
 use common::{adversarial_rays, mixed_primitives, random_rays};
 use glam::Vec3;
 use raypack::accel::Accel;
@@ -16,10 +17,6 @@ use raypack::accel::packet::RayPacket;
 use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
-
-fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
-    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-}
 
 /// Asserts that the kd-tree (scalar and packet) and brute force agree bit for bit on
 /// every ray's closest hit and occlusion; returns the number of hits.
@@ -36,14 +33,14 @@ fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize 
             let lane = packet_hits.lane(i);
             let from_packet = lane.is_hit().then_some(lane);
             assert_eq!(
-                bits(got),
-                bits(want),
+                hit_bits(got),
+                hit_bits(want),
                 "{what}: ray {} {ray:?} kd-tree vs brute",
                 c * 4 + i
             );
             assert_eq!(
-                bits(from_packet),
-                bits(want),
+                hit_bits(from_packet),
+                hit_bits(want),
                 "{what}: ray {} {ray:?} packet vs brute",
                 c * 4 + i
             );
@@ -98,7 +95,11 @@ fn nan_infinite_and_zero_rays_hit_nothing() {
         let occluded = tree.occluded_packet(&packet);
         assert_eq!(occluded, 0b0101, "{ray:?}");
         for i in [0, 2] {
-            assert_eq!(bits(Some(hits.lane(i))), bits(Some(want)), "{ray:?}");
+            assert_eq!(
+                hit_bits(Some(hits.lane(i))),
+                hit_bits(Some(want)),
+                "{ray:?}"
+            );
         }
         assert!(!hits.lane(1).is_hit() && !hits.lane(3).is_hit(), "{ray:?}");
     }
