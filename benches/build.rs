@@ -5,14 +5,14 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use raypack::accel::kdtree::KdTree;
-use raypack::rayset::scenes;
+use raypack::scene::catalog;
 use std::hint::black_box;
 
 fn build(c: &mut Criterion) {
     let mut group = c.benchmark_group("build");
     group.sample_size(10);
     for name in ["bunny", "sponza"] {
-        let scene = scenes::load(name).unwrap_or_else(|e| panic!("{e}"));
+        let scene = catalog::load(name).unwrap_or_else(|e| panic!("{e}"));
         group.throughput(Throughput::Elements(scene.geometry.triangles.len() as u64));
         group.bench_function(name, |b| {
             b.iter(|| black_box(KdTree::build(black_box(&scene.geometry))))

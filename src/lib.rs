@@ -34,5 +34,5 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
         || e.is::<scene::TextureError>()
         || e.downcast_ref::<rayset::RaySetError>()
             .is_some_and(rayset::RaySetError::is_input)
-        || e.is::<rayset::scenes::BenchSceneError>()
+        || e.is::<scene::catalog::BenchSceneError>()
 }

@@ -27,7 +27,7 @@ use crate::onb::Onb;
 use crate::ray::{Hit, Ray};
 use crate::rng::Pcg32;
 use crate::scene::file::MAX_PIXELS;
-use crate::scene::{Geometry, PrimRef, View};
+use crate::scene::{Geometry, PrimRef, View, scene_box};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -146,16 +146,6 @@ impl LightSource {
             LightSource::HalfDiagonal => "0.5 * diagonal above the eye",
         }
     }
-}
-
-/// Bounds of the bounded primitives in f64 and their diagonal (planes excluded).
-pub fn scene_box(geometry: &Geometry) -> (DVec3, DVec3, f64) {
-    let b = geometry.bounds();
-    if b.is_empty() {
-        return (DVec3::ZERO, DVec3::ZERO, 0.0);
-    }
-    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-    (lo, hi, (hi - lo).length())
 }
 
 /// The harness's default light: halfway between the eye and whatever is above it.
