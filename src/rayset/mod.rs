@@ -1,7 +1,7 @@
 //! Ray sets and hit files: the exchange formats of RAYS.md, the standard sets
 //! (primary, shadow, diffuse) and the traced answers that two tracers compare.
 //!
-//! Stage: between the accelerators and the CLI. [`format`] reads and writes the files
+//! Stage: between the accelerators and the CLI. [`format`](mod@format) reads and writes the files
 //! of RAYS.md, [`standard`] makes the standard sets, [`trace`] traces a set the way the
 //! benchmark times it.
 
