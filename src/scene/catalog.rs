@@ -3,6 +3,8 @@
 //! command, because the criterion benchmarks (which link only the library) load the
 //! benchmark scenes by the same names.
 //!
+//! [`Scene::from_obj`] is the policy that turns a bare mesh into a scene to render.
+//!
 //! Stage: scene (it reads meshes, scene files and SPD generators, nothing above).
 //! Accepted:
 //!
@@ -17,7 +19,10 @@
 //!   ([`super::spd`]) with its published viewpoint.
 
 use super::spd::{self, SpdError};
-use super::{Geometry, ObjError, SceneError, View, Warning, scene_box};
+use super::{
+    Camera, Geometry, Material, ObjError, RenderSettings, Scene, SceneError, View, Warning,
+    scene_box,
+};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -254,4 +259,70 @@ pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
         load_seconds: start.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+impl Scene {
+    /// A scene of one OBJ mesh, for rendering the benchmark meshes and any OBJ file: its
+    /// triangles (prim ids as in RAYS.md); the file's normals and texture coordinates
+    /// where it has them, geometric normals where it has none (smoothing normals the
+    /// author did not give would round off hard edges); one material per MTL material,
+    /// with its `Kd` colour and `map_Kd` texture, and the default grey for triangles
+    /// before any `usemtl`; no lights (the caller places them); 1024x768, the size of
+    /// RAYS.md's standard ray sets. Returns the mesh's warnings beside the scene.
+    pub fn from_obj(path: &Path, camera: Camera) -> Result<(Scene, Vec<Warning>), ObjError> {
+        let mesh = super::obj::load(path)?;
+        let warnings = mesh.warning(path).into_iter().collect();
+        let mut textures = Vec::new();
+        let mut materials = Vec::with_capacity(mesh.materials.len() + 1);
+        for m in &mesh.materials {
+            let texture = match &m.diffuse_texture {
+                Some(file) => {
+                    let t = super::texture::load(file).map_err(|source| ObjError::Texture {
+                        path: path.to_path_buf(),
+                        material: m.name.clone(),
+                        source: Box::new(source),
+                    })?;
+                    textures.push(t);
+                    Some(textures.len() as u32 - 1)
+                }
+                None => None,
+            };
+            materials.push(Material {
+                color: m.diffuse,
+                texture,
+                ..Material::default()
+            });
+        }
+        let fallback = materials.len() as u32;
+        materials.push(Material::default());
+        let prim_material = mesh
+            .tri_material
+            .iter()
+            .map(|m| m.unwrap_or(fallback))
+            .collect();
+        let scene = Scene {
+            geometry: Geometry {
+                vertices: mesh.positions,
+                triangles: mesh.triangles,
+                ..Default::default()
+            },
+            normals: if mesh.normals_from_file {
+                mesh.normals
+            } else {
+                Vec::new()
+            },
+            uvs: mesh.uvs,
+            prim_material,
+            materials,
+            textures,
+            lights: Vec::new(),
+            camera,
+            settings: RenderSettings {
+                width: 1024,
+                height: 768,
+                ..Default::default()
+            },
+        };
+        Ok((scene, warnings))
+    }
 }
