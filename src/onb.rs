@@ -29,15 +29,18 @@ macro_rules! impl_vector {
     ($v:ty, $r:ty) => {
         impl Real for $r {
             const ONE: $r = 1.0;
+            #[inline]
             fn copysign(self, sign: $r) -> $r {
                 <$r>::copysign(self, sign)
             }
         }
         impl Vector for $v {
             type Real = $r;
+            #[inline]
             fn new(x: $r, y: $r, z: $r) -> $v {
                 <$v>::new(x, y, z)
             }
+            #[inline]
             fn xyz(self) -> [$r; 3] {
                 self.to_array()
             }

@@ -21,6 +21,7 @@ impl Pcg32 {
     const MULT: u64 = 6364136223846793005;
 
     /// The reference `pcg32_srandom_r(initstate, initseq)` seeding.
+    #[inline]
     pub fn new(seed: u64, stream: u64) -> Pcg32 {
         let mut rng = Pcg32 {
             state: 0,
@@ -33,6 +34,7 @@ impl Pcg32 {
     }
 
     /// The next 32 random bits (`pcg32_random_r`).
+    #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
         self.state = old.wrapping_mul(Self::MULT).wrapping_add(self.inc);
@@ -42,11 +44,13 @@ impl Pcg32 {
     }
 
     /// Uniform in `[0, 1)`: the top 24 bits, so every value is exact and below 1.
+    #[inline]
     pub fn next_f32(&mut self) -> f32 {
         (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
     }
 
     /// The same 24 bits as [`Pcg32::next_f32`] in f64, as the Embree harness draws.
+    #[inline]
     pub fn next_f64(&mut self) -> f64 {
         (self.next_u32() >> 8) as f64 * (1.0 / 16_777_216.0)
     }
@@ -54,6 +58,7 @@ impl Pcg32 {
 
 /// SplitMix64's finaliser of `z` plus the golden-ratio increment: spreads neighbouring
 /// integers over all 64 bits.
+#[inline]
 pub fn mix64(mut z: u64) -> u64 {
     z = z.wrapping_add(SplitMix64::GAMMA);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -70,11 +75,13 @@ impl SplitMix64 {
     const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
 
     /// The generator whose sequence is fixed by `seed` alone.
+    #[inline]
     pub fn new(seed: u64) -> SplitMix64 {
         SplitMix64(seed)
     }
 
     /// The next 64 random bits; the other draws are built on it.
+    #[inline]
     pub fn next_u64(&mut self) -> u64 {
         let out = mix64(self.0);
         self.0 = self.0.wrapping_add(Self::GAMMA);
@@ -82,21 +89,25 @@ impl SplitMix64 {
     }
 
     /// Uniform in `[0, 1)`, 24 random bits.
+    #[inline]
     pub fn f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
 
     /// Uniform in `[lo, hi)`.
+    #[inline]
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.f32()
     }
 
     /// Uniform in `0..n`.
+    #[inline]
     pub fn below(&mut self, n: u32) -> u32 {
         (((self.next_u64() >> 32) * n as u64) >> 32) as u32
     }
 
     /// A point uniform in the box `[lo, hi]`.
+    #[inline]
     pub fn point(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
         Vec3::new(
             self.range(lo.x, hi.x),
@@ -106,6 +117,7 @@ impl SplitMix64 {
     }
 
     /// A unit vector, uniform on the sphere.
+    #[inline]
     pub fn unit_vector(&mut self) -> Vec3 {
         let z = self.range(-1.0, 1.0);
         let phi = self.range(0.0, std::f32::consts::TAU);

@@ -376,16 +376,17 @@ pub fn write_rays(path: &Path, set: &RaySet) -> Result<(), RaySetError> {
             what: format!("{}: header fields `width`, `height`", path.display()),
             reason,
         })?;
-    write_atomic(path, &rays_bytes(set))
+    write_whole(path, &rays_bytes(set))
 }
 
 /// Writes a hits file (whole or not at all).
 pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<(), RaySetError> {
-    write_atomic(path, &hits_bytes(hits))
+    write_whole(path, &hits_bytes(hits))
 }
 
-/// Writes `bytes` whole or not at all ([`crate::output::write_atomic`]).
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RaySetError> {
+/// Writes `bytes` whole or not at all through the one atomic writer
+/// ([`crate::output::write_bytes_atomic`]), naming the error as a ray-set error.
+fn write_whole(path: &Path, bytes: &[u8]) -> Result<(), RaySetError> {
     crate::output::write_bytes_atomic(path, bytes, |source| RaySetError::Write {
         path: path.to_path_buf(),
         source,
