@@ -6,7 +6,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use raypack::accel::kdtree::{BuildParams, BuilderKind, KdTree};
-use raypack::rayset::scenes;
+use raypack::scene::catalog;
 use std::hint::black_box;
 
 fn build(c: &mut Criterion) {
@@ -17,7 +17,7 @@ fn build(c: &mut Criterion) {
         ..BuildParams::default()
     };
     for name in ["bunny", "sponza"] {
-        let scene = scenes::load(name).unwrap_or_else(|e| panic!("{e}"));
+        let scene = catalog::load(name).unwrap_or_else(|e| panic!("{e}"));
         group.throughput(Throughput::Elements(scene.geometry.triangles.len() as u64));
         group.bench_function(name, |b| {
             b.iter(|| black_box(KdTree::build(black_box(&scene.geometry))))

@@ -15,11 +15,12 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use raypack::accel::kdtree::KdTree;
 use raypack::rayset::trace::{Query, checksum_chunk};
-use raypack::rayset::{Mode, scenes, standard};
+use raypack::rayset::{Mode, standard};
+use raypack::scene::catalog;
 use std::hint::black_box;
 
 fn traverse(c: &mut Criterion) {
-    let scene = scenes::load("sponza").unwrap_or_else(|e| panic!("{e}"));
+    let scene = catalog::load("sponza").unwrap_or_else(|e| panic!("{e}"));
     let tree = KdTree::build(&scene.geometry);
     let sets = standard::standard_sets(
         &tree,

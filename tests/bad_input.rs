@@ -2,6 +2,7 @@
 //! rejected with its specific error variant, a message naming the file, the line and the
 //! key or statement, and never a panic.
 
+use raypack::rng::SplitMix64;
 use raypack::scene::{ObjError, SceneError, TextureError, file, obj, texture};
 use std::error::Error;
 use std::path::PathBuf;
@@ -709,36 +710,24 @@ fn hostile_scene_text_never_panics() {
     }
 }
 
-/// A tiny seeded generator (SplitMix64) for the mutation tests.
-struct Mix(u64);
-
-impl Mix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
+/// Uniform in `0..n` by the remainder, the draw the mutation tests were written with.
+fn below(rng: &mut SplitMix64, n: usize) -> usize {
+    (rng.next_u64() % n as u64) as usize
 }
 
 /// `text` with a few bytes replaced, inserted or deleted; replacements favour bytes that
 /// matter to the grammars (digits, signs, brackets, quotes, newlines).
-fn mutate(text: &[u8], rng: &mut Mix) -> Vec<u8> {
+fn mutate(text: &[u8], rng: &mut SplitMix64) -> Vec<u8> {
     const INTERESTING: &[u8] = b"0123456789-+.eE[]{}\"=,/ \n#nainf\x00\xff";
     let mut out = text.to_vec();
-    for _ in 0..1 + rng.below(4) {
-        let at = rng.below(out.len() + 1);
-        let byte = if rng.below(4) == 0 {
-            rng.next() as u8
+    for _ in 0..1 + below(rng, 4) {
+        let at = below(rng, out.len() + 1);
+        let byte = if below(rng, 4) == 0 {
+            rng.next_u64() as u8
         } else {
-            INTERESTING[rng.below(INTERESTING.len())]
+            INTERESTING[below(rng, INTERESTING.len())]
         };
-        match rng.below(3) {
+        match below(rng, 3) {
             0 if at < out.len() => out[at] = byte,
             1 if at < out.len() => {
                 out.remove(at);
@@ -768,7 +757,7 @@ fn mutated_scene_files_never_panic() {
             .to_vec(),
     );
     let path = root.join("scenes/mutated.toml");
-    let mut rng = Mix(2024);
+    let mut rng = SplitMix64::new(2024);
     let (mut ok, mut rejected) = (0, 0);
     for i in 0..3000 {
         let text = mutate(&seeds[i % seeds.len()], &mut rng);
@@ -795,7 +784,7 @@ fn mutated_obj_files_never_panic() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("m.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
     let path = dir.join("m.obj");
-    let mut rng = Mix(7);
+    let mut rng = SplitMix64::new(7);
     let (mut ok, mut rejected) = (0, 0);
     for _ in 0..1500 {
         std::fs::write(&path, mutate(seed, &mut rng)).unwrap();

@@ -1,68 +1,38 @@
 //! The `rays`, `trace` and `bench` subcommands end to end: files in the layout of
 //! RAYS.md, hits that match the in-process scalar path, and the errors users see.
 
+mod common;
+
+use common::cli::{check, raypack, raypack_env, s, scratch};
+
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::ray::Hit;
 use raypack::rayset::{self, RaySetError};
 use raypack::scene::spd;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn raypack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raypack"))
-        .args(args)
-        .output()
-        .expect("run raypack")
-}
-
-fn raypack_env(args: &[&str], key: &str, value: &str) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raypack"))
-        .args(args)
-        .env(key, value)
-        .output()
-        .expect("run raypack")
-}
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "raypack failed ({:?}):\n{}\n{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// A fresh directory for one test's files.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("raypack-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use std::path::Path;
+use std::process::Output;
 
 const SCENE: &str = "spd:tetra:3";
 
 /// `raypack rays SCENE --set SET -o PATH --width W --height H`, which must succeed.
 fn write_set(set: &str, path: &Path, width: u32, height: u32) {
     let (w, h) = (width.to_string(), height.to_string());
-    ok(&raypack(&[
-        "rays",
-        SCENE,
-        "--set",
-        set,
-        "-o",
-        s(path),
-        "--width",
-        &w,
-        "--height",
-        &h,
-    ]));
+    check(
+        &raypack(&[
+            "rays",
+            SCENE,
+            "--set",
+            set,
+            "-o",
+            s(path),
+            "--width",
+            &w,
+            "--height",
+            &h,
+        ]),
+        "raypack rays",
+    );
 }
 
 #[test]
@@ -85,16 +55,19 @@ fn trace_writes_the_hits_of_the_in_process_scalar_path() {
         }
         for mode in ["scalar", "packet"] {
             let hits_path = dir.join(format!("{set}.{mode}.hits"));
-            ok(&raypack(&[
-                "trace",
-                SCENE,
-                "--rays",
-                s(&rays_path),
-                "-o",
-                s(&hits_path),
-                "--mode",
-                mode,
-            ]));
+            check(
+                &raypack(&[
+                    "trace",
+                    SCENE,
+                    "--rays",
+                    s(&rays_path),
+                    "-o",
+                    s(&hits_path),
+                    "--mode",
+                    mode,
+                ]),
+                "raypack trace",
+            );
             let hits = rayset::read_hits(&hits_path).unwrap();
             assert_eq!(hits.len(), rays.len());
             for (i, (got, want)) in hits.iter().zip(&expected).enumerate() {
@@ -250,7 +223,7 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
         "--json",
         s(&json),
     ]);
-    ok(&out);
+    check(&out, "raypack bench");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("Mrays/s") && !stdout.contains("differs"),
@@ -335,31 +308,37 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
 
     // --rays DIR traces ray files instead: the same rays give the same checksum.
     let primary = dir.join("primary.rays");
-    ok(&raypack(&[
-        "rays",
-        "spd:balls:2",
-        "-o",
-        s(&primary),
-        "--width",
-        "32",
-        "--height",
-        "32",
-    ]));
+    check(
+        &raypack(&[
+            "rays",
+            "spd:balls:2",
+            "-o",
+            s(&primary),
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ]),
+        "raypack rays",
+    );
     let json2 = dir.join("files.json");
-    ok(&raypack(&[
-        "bench",
-        "spd:balls:2",
-        "--rays",
-        s(&dir),
-        "--sets",
-        "primary",
-        "--repeat",
-        "1",
-        "--threads",
-        "1",
-        "--json",
-        s(&json2),
-    ]));
+    check(
+        &raypack(&[
+            "bench",
+            "spd:balls:2",
+            "--rays",
+            s(&dir),
+            "--sets",
+            "primary",
+            "--repeat",
+            "1",
+            "--threads",
+            "1",
+            "--json",
+            s(&json2),
+        ]),
+        "raypack bench",
+    );
     let w: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json2).unwrap()).unwrap();
     assert_eq!(w["results"][0]["checksum"], rows[0]["checksum"]);
@@ -375,8 +354,7 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
 fn bench_without_the_shared_scenes_says_where_they_belong() {
     let out = raypack_env(
         &["bench", "sponza"],
-        "RAYPACK_SCENES",
-        "/nonexistent/raypack-scenes",
+        &[("RAYPACK_SCENES", "/nonexistent/raypack-scenes")],
     );
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
@@ -395,22 +373,25 @@ fn bench_cost_flags_change_the_tree_not_the_hits() {
     let dir = scratch("costs");
     let run = |kt: &str| {
         let json = dir.join(format!("kt{kt}.json"));
-        ok(&raypack(&[
-            "bench",
-            "spd:tetra:4",
-            "--width",
-            "32",
-            "--height",
-            "32",
-            "--repeat",
-            "1",
-            "--threads",
-            "1",
-            "--traversal-cost",
-            kt,
-            "--json",
-            s(&json),
-        ]));
+        check(
+            &raypack(&[
+                "bench",
+                "spd:tetra:4",
+                "--width",
+                "32",
+                "--height",
+                "32",
+                "--repeat",
+                "1",
+                "--threads",
+                "1",
+                "--traversal-cost",
+                kt,
+                "--json",
+                s(&json),
+            ]),
+            "raypack bench",
+        );
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
         assert_eq!(v["sah_costs"][0].as_f64(), kt.parse().ok());
@@ -441,14 +422,17 @@ fn bench_cost_flags_change_the_tree_not_the_hits() {
 fn spd_scenes_export_to_obj() {
     let dir = scratch("obj");
     let obj = dir.join("rings.obj");
-    ok(&raypack(&[
-        "rays",
-        "spd:rings:1",
-        "--obj",
-        s(&obj),
-        "--sphere-rings",
-        "3",
-    ]));
+    check(
+        &raypack(&[
+            "rays",
+            "spd:rings:1",
+            "--obj",
+            s(&obj),
+            "--sphere-rings",
+            "3",
+        ]),
+        "raypack rays",
+    );
     let text = std::fs::read_to_string(&obj).unwrap();
     let faces = text.lines().filter(|l| l.starts_with("f ")).count();
     // One ring: 30 spheres of 6 segments x 3 bands, 30 six-sided tubes, the floor.

@@ -3,12 +3,15 @@
 //! replays its target's checks on the input the fuzzer reported (as printed by
 //! `cargo fuzz fmt TARGET ARTIFACT`).
 
+mod common;
+
+use common::hit_bits;
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::KdTree;
 use raypack::accel::packet::RayPacket;
-use raypack::ray::{Hit, Ray};
+use raypack::ray::Ray;
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
 use raypack::simd::W16;
 
@@ -18,10 +21,6 @@ struct KdInput {
     triangles: Vec<[u8; 3]>,
     extras: bool,
     rays: Vec<([f32; 3], [f32; 3], f32, f32)>,
-}
-
-fn key(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
-    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
 }
 
 /// The `kdtree` target: the scene it builds (triangles, then with `extras` a sphere at
@@ -64,11 +63,15 @@ fn check_kdtree(input: KdInput) {
         let occluded = tree.occluded_packet(&packet);
         for (i, ray) in chunk.iter().enumerate() {
             let want = brute.intersect(ray);
-            assert_eq!(key(tree.intersect(ray)), key(want), "kd-tree: {ray:?}");
+            assert_eq!(
+                hit_bits(tree.intersect(ray)),
+                hit_bits(want),
+                "kd-tree: {ray:?}"
+            );
             let lane = hits.lane(i);
             assert_eq!(
-                key(lane.is_hit().then_some(lane)),
-                key(want),
+                hit_bits(lane.is_hit().then_some(lane)),
+                hit_bits(want),
                 "packet: {ray:?}"
             );
             let blocked = brute.occluded(ray);

@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::hit_bits;
 use common::{
     adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
 };
@@ -49,10 +50,6 @@ fn builds() -> [(BuildParams, &'static str); 3] {
     ]
 }
 
-fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
-    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-}
-
 /// Asserts closest-hit equality for every ray, and any-hit equality for each ray cut
 /// short before, at and after its hit (shadow rays). Returns the number of hits.
 fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -> usize {
@@ -62,8 +59,8 @@ fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -
         let want = brute.intersect(ray);
         let got = tree.intersect(ray);
         assert_eq!(
-            bits(got),
-            bits(want),
+            hit_bits(got),
+            hit_bits(want),
             "{what}: ray {i} {ray:?}\n  kd-tree {got:?}\n  brute   {want:?}"
         );
         let t_hit = want.map_or(1.0, |h| h.t);

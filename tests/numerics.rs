@@ -7,6 +7,7 @@
 mod common;
 
 use common::closed::{leaks_packet, leaks_scalar};
+use common::hit_bits;
 use common::{adversarial_rays, mixed_primitives, random_rays};
 use glam::Vec3;
 use raypack::accel::Accel;
@@ -17,10 +18,6 @@ use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
 use raypack::simd::{W4, W8, W16};
-
-fn bits(h: Option<raypack::ray::Hit>) -> Option<(u32, u32, u32, u32)> {
-    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-}
 
 /// Asserts that the kd-tree (scalar and packet) and brute force agree bit for bit on
 /// every ray's closest hit and occlusion; returns the number of hits.
@@ -37,14 +34,14 @@ fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize 
             let lane = packet_hits.lane(i);
             let from_packet = lane.is_hit().then_some(lane);
             assert_eq!(
-                bits(got),
-                bits(want),
+                hit_bits(got),
+                hit_bits(want),
                 "{what}: ray {} {ray:?} kd-tree vs brute",
                 c * 8 + i
             );
             assert_eq!(
-                bits(from_packet),
-                bits(want),
+                hit_bits(from_packet),
+                hit_bits(want),
                 "{what}: ray {} {ray:?} packet vs brute",
                 c * 8 + i
             );
@@ -99,7 +96,11 @@ fn nan_infinite_and_zero_rays_hit_nothing() {
         let occluded = tree.occluded_packet(&packet);
         assert_eq!(occluded, 0b0101, "{ray:?}");
         for i in [0, 2] {
-            assert_eq!(bits(Some(hits.lane(i))), bits(Some(want)), "{ray:?}");
+            assert_eq!(
+                hit_bits(Some(hits.lane(i))),
+                hit_bits(Some(want)),
+                "{ray:?}"
+            );
         }
         assert!(!hits.lane(1).is_hit() && !hits.lane(3).is_hit(), "{ray:?}");
     }

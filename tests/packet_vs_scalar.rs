@@ -16,6 +16,7 @@
 
 mod common;
 
+use common::hit_bits;
 use common::{
     adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
 };
@@ -424,10 +425,6 @@ fn show_hit(h: Option<Hit>) -> String {
     h.map_or("miss".into(), |h| {
         format!("prim {} t {:?} u {:?} v {:?}", h.prim, h.t, h.u, h.v)
     })
-}
-
-fn hit_bits(h: Option<Hit>) -> Option<[u32; 4]> {
-    h.map(|h| [h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()])
 }
 
 /// One ray's closest hit (a miss as [`Hit::MISS`]) and any-hit answer against the

@@ -7,22 +7,19 @@
 
 mod common;
 
+use common::hit_bits;
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::KdTree;
 use raypack::accel::packet::RayPacket;
-use raypack::ray::{Hit, Ray};
+use raypack::ray::Ray;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
 use raypack::simd::{Float, LaneMask, Mask, Simd, Vf, W4, W8, W16};
 
 const SCENES: u64 = 64;
 const PACKETS: usize = 600;
-
-fn key(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
-    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-}
 
 /// Scene number `seed`: everything placed in `[0, 1]^3`, then scaled and moved.
 fn random_scene(seed: u64) -> Geometry {
@@ -172,13 +169,13 @@ fn packet_equals_scalar_at<W: Simd>() {
                 }
                 let scalar = tree.intersect(ray);
                 assert_eq!(
-                    key(scalar),
-                    key(brute.intersect(ray)),
+                    hit_bits(scalar),
+                    hit_bits(brute.intersect(ray)),
                     "{what}: kd-tree vs brute"
                 );
                 assert_eq!(
-                    key(lane.is_hit().then_some(lane)),
-                    key(scalar),
+                    hit_bits(lane.is_hit().then_some(lane)),
+                    hit_bits(scalar),
                     "{what}: packet vs scalar"
                 );
                 let blocked = tree.occluded(ray);

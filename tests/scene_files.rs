@@ -2,7 +2,7 @@
 
 use raypack::accel::brute::BruteForce;
 use raypack::render::{Mode, render};
-use raypack::scene::{AntiAlias, Light, file, obj};
+use raypack::scene::{AntiAlias, Light, file, generate};
 use std::path::{Path, PathBuf};
 
 fn scenes_dir() -> PathBuf {
@@ -118,14 +118,14 @@ fn world_minus_x_is_screen_right_with_the_tutorial_camera() {
 #[test]
 fn knot_obj_is_the_generator_output() {
     let path = scenes_dir().join("knot.obj");
-    let generated = obj::part7_knot_obj();
+    let generated = generate::part7_knot_obj();
     if std::env::var_os("RAYPACK_BLESS").is_some() {
         std::fs::write(&path, &generated).expect("scenes/knot.obj is writable");
     }
     let committed = std::fs::read_to_string(&path).expect("scenes/knot.obj is readable");
     assert!(
         committed == generated,
-        "{} differs from raypack::scene::obj::part7_knot_obj(); regenerate it with \
+        "{} differs from raypack::scene::generate::part7_knot_obj(); regenerate it with \
          `RAYPACK_BLESS=1 cargo test --release --test scene_files knot`",
         path.display()
     );

@@ -5,6 +5,7 @@
 //! primitive and is the oracle; [`kdtree::KdTree`] is the fast path. Both hold the same
 //! [`Prims`] records, so a disagreement points at traversal, not at a primitive test.
 
+pub mod axis;
 pub mod brute;
 pub mod kdtree;
 pub mod packet;

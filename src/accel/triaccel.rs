@@ -49,13 +49,12 @@
 //!
 //! The cost in Mrays/s is recorded in perf/README.md, section "Watertightness".
 
+// The packet twin names the axes through this module too.
+pub use super::axis::MOD3;
 use super::watertight;
 use crate::ray::Ray;
 use crate::scene::Geometry;
 use glam::{DVec3, Vec3};
-
-/// `(k + 1) % 3` and `(k + 2) % 3` without a division: `MOD3[k + 1]`, `MOD3[k + 2]`.
-pub const MOD3: [usize; 5] = [0, 1, 2, 0, 1];
 
 /// Unit roundoff of f32.
 const EPS: f32 = f32::EPSILON * 0.5;

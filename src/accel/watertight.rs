@@ -23,7 +23,7 @@
 //! rounding bound of an edge, and then reports this test's `t`, `u`, `v`; the scalar and
 //! packet paths call the same function, so they agree bit for bit.
 
-use super::triaccel::MOD3;
+use super::axis::MOD3;
 use crate::ray::Ray;
 use glam::Vec3;
 

@@ -181,8 +181,8 @@ pub fn check_size_flags(width: u32, height: u32) -> Result<(), BadInput> {
 }
 
 /// Loads a scene argument of `bench`, `trace` or `rays` and says what was loaded.
-pub fn load_scene(arg: &str) -> anyhow::Result<raypack::rayset::scenes::BenchScene> {
-    let scene = raypack::rayset::scenes::load(arg)?;
+pub fn load_scene(arg: &str) -> anyhow::Result<raypack::scene::catalog::BenchScene> {
+    let scene = raypack::scene::catalog::load(arg)?;
     eprintln!(
         "{}: {} (loaded in {:.2} s)",
         scene.name,

@@ -4,55 +4,15 @@
 //!
 //! Invariants: every generator is seeded from the scene seed, the pixel and the sample
 //! index only ([`pixel_rng`]), so an image never depends on the number of threads or on
-//! the order tiles are rendered in. The orthonormal basis is that of Duff et al.,
-//! "Building an Orthonormal Basis, Revisited" (JCGT 2017): branch-free except for the
-//! sign of `n.z`, and exact for `n = ±z`.
+//! the order tiles are rendered in. The generator ([`Pcg32`]) and the orthonormal basis
+//! ([`Onb`]) are shared with the ray-set generator and live below both ([`crate::rng`],
+//! [`crate::onb`]).
 
 use glam::Vec3;
 
-/// O'Neill's PCG32 (XSH RR 64/32): 64 bits of state, a per-stream odd increment.
-#[derive(Clone, Debug)]
-pub struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    const MULT: u64 = 6364136223846793005;
-
-    /// The reference `pcg32_srandom_r(initstate, initseq)` seeding.
-    pub fn new(seed: u64, stream: u64) -> Pcg32 {
-        let mut rng = Pcg32 {
-            state: 0,
-            inc: (stream << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(seed);
-        rng.next_u32();
-        rng
-    }
-
-    pub fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old.wrapping_mul(Self::MULT).wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        let rot = (old >> 59) as u32;
-        xorshifted.rotate_right(rot)
-    }
-
-    /// Uniform in `[0, 1)`: the top 24 bits, so every value is exact and below 1.
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
-    }
-}
-
-/// SplitMix64's finaliser: spreads neighbouring integers over all 64 bits.
-fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+pub use crate::onb::Onb;
+pub use crate::rng::Pcg32;
+use crate::rng::mix64;
 
 /// The generator of sample `sample` of pixel `(x, y)` under scene seed `seed`. Pixels
 /// and samples get independent streams, so rendering them in any order on any number of
@@ -60,31 +20,6 @@ fn mix64(mut z: u64) -> u64 {
 pub fn pixel_rng(seed: u64, x: u32, y: u32, sample: u32) -> Pcg32 {
     let pixel = ((y as u64) << 32) | x as u64;
     Pcg32::new(mix64(seed ^ mix64(pixel)), sample as u64)
-}
-
-/// A right-handed orthonormal basis `(u, v, w)` with `w` the given unit vector.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Onb {
-    pub u: Vec3,
-    pub v: Vec3,
-    pub w: Vec3,
-}
-
-impl Onb {
-    /// Duff et al. 2017, listing 3. `w` must be unit length.
-    pub fn from_w(w: Vec3) -> Onb {
-        let sign = 1.0f32.copysign(w.z);
-        let a = -1.0 / (sign + w.z);
-        let b = w.x * w.y * a;
-        let u = Vec3::new(1.0 + sign * w.x * w.x * a, sign * b, -sign * w.x);
-        let v = Vec3::new(b, sign + w.y * w.y * a, -w.y);
-        Onb { u, v, w }
-    }
-
-    /// `local.x * u + local.y * v + local.z * w`.
-    pub fn to_world(&self, local: Vec3) -> Vec3 {
-        self.u * local.x + self.v * local.y + self.w * local.z
-    }
 }
 
 /// A direction uniformly distributed over the solid angle of the cone around `axis`
@@ -142,19 +77,6 @@ mod tests {
     }
 
     #[test]
-    fn pcg32_matches_the_reference_sequence() {
-        // pcg32-global-demo with seed 42, sequence 54 prints these first values.
-        let mut rng = Pcg32::new(42, 54);
-        let got: Vec<u32> = (0..6).map(|_| rng.next_u32()).collect();
-        assert_eq!(
-            got,
-            [
-                0xa15c02b7, 0x7b47f409, 0xba1d3330, 0x83d2f293, 0xbfa4784b, 0xcbed606e
-            ]
-        );
-    }
-
-    #[test]
     fn floats_are_in_the_unit_interval_and_streams_differ() {
         let mut rng = pixel_rng(7, 3, 4, 0);
         for _ in 0..10_000 {
@@ -166,27 +88,6 @@ mod tests {
         assert_ne!(a, pixel_rng(7, 3, 4, 1).next_u32());
         assert_ne!(a, pixel_rng(8, 3, 4, 0).next_u32());
         assert_eq!(a, pixel_rng(7, 3, 4, 0).next_u32());
-    }
-
-    #[test]
-    fn onb_is_orthonormal_and_right_handed() {
-        let mut rng = Pcg32::new(1, 2);
-        let mut ws: Vec<Vec3> = (0..2000).map(|_| random_unit(&mut rng)).collect();
-        ws.extend([Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z]);
-        ws.push(Vec3::new(1.0, 0.0, -0.0));
-        for w in ws {
-            let b = Onb::from_w(w);
-            for (a, name) in [(b.u, "u"), (b.v, "v"), (b.w, "w")] {
-                assert!((a.length() - 1.0).abs() < 1e-5, "{name} of {w} not unit");
-            }
-            assert!(b.u.dot(b.v).abs() < 1e-5, "u.v for {w}");
-            assert!(b.u.dot(b.w).abs() < 1e-5, "u.w for {w}");
-            assert!(b.v.dot(b.w).abs() < 1e-5, "v.w for {w}");
-            assert!((b.u.cross(b.v) - b.w).length() < 1e-5, "handedness for {w}");
-            let p = Vec3::new(0.3, -0.2, 0.9);
-            let q = b.to_world(p);
-            assert!((Vec3::new(q.dot(b.u), q.dot(b.v), q.dot(b.w)) - p).length() < 1e-5);
-        }
     }
 
     #[test]

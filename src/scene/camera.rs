@@ -1,7 +1,7 @@
 //! The look-at pinhole camera, with exactly the convention of RAYS.md.
 
 use crate::ray::Ray;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// A pinhole camera at `eye` looking at `target`, as a scene file or a benchmark's
 /// `cameras.toml` gives it; [`Camera::frame`] turns it into an orthonormal basis.
@@ -16,6 +16,43 @@ pub struct Camera {
     pub up: Vec3,
     /// Vertical field of view in degrees, edge to edge of the image.
     pub vfov_deg: f32,
+}
+
+/// A look-at pinhole camera in f64, as the numbers are written in cameras.toml
+/// (RAYS.md): the standard ray sets and the benchmark scenes are made from it in f64, and
+/// [`Camera`] is its f32 form for rendering.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Where every primary ray starts.
+    pub eye: DVec3,
+    /// The point at the image centre.
+    pub target: DVec3,
+    /// A hint for the image's up direction (see [`Camera::up`]).
+    pub up: DVec3,
+    /// Vertical field of view in degrees.
+    pub vfov_deg: f64,
+}
+
+impl From<&Camera> for View {
+    fn from(c: &Camera) -> View {
+        View {
+            eye: c.eye.as_dvec3(),
+            target: c.target.as_dvec3(),
+            up: c.up.as_dvec3(),
+            vfov_deg: c.vfov_deg as f64,
+        }
+    }
+}
+
+impl From<&View> for Camera {
+    fn from(v: &View) -> Camera {
+        Camera {
+            eye: v.eye.as_vec3(),
+            target: v.target.as_vec3(),
+            up: v.up.as_vec3(),
+            vfov_deg: v.vfov_deg as f32,
+        }
+    }
 }
 
 /// A camera prepared for one image size.

@@ -1,6 +1,6 @@
 //! Deterministic mesh generators for tests and benchmarks: random triangle soups, a
-//! tessellated sphere, a grid of axis-aligned triangles lying on likely split planes, and
-//! a closed box made of triangles.
+//! tessellated sphere, a grid of axis-aligned triangles lying on likely split planes, a
+//! closed box made of triangles, and the OBJ text of a torus knot (scenes/knot.obj).
 //!
 //! Every generator is a pure function of its arguments (seeded with [`Rng`], a
 //! SplitMix64), so a failing test names a scene that anyone can rebuild. Triangles are
@@ -9,58 +9,9 @@
 use super::Geometry;
 use glam::Vec3;
 
-/// SplitMix64 (Steele, Lea & Flood 2014): tiny, seedable, and good enough for test
-/// geometry and ray sets.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// The generator whose sequence is fixed by `seed` alone.
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits; the other draws are built on it.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`, 24 random bits.
-    pub fn f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f32()
-    }
-
-    /// Uniform in `0..n`.
-    pub fn below(&mut self, n: u32) -> u32 {
-        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
-    }
-
-    /// A point uniform in the box `[lo, hi]`.
-    pub fn point(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
-        Vec3::new(
-            self.range(lo.x, hi.x),
-            self.range(lo.y, hi.y),
-            self.range(lo.z, hi.z),
-        )
-    }
-
-    /// A unit vector, uniform on the sphere.
-    pub fn unit_vector(&mut self) -> Vec3 {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, std::f32::consts::TAU);
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        Vec3::new(r * phi.cos(), r * phi.sin(), z)
-    }
-}
+/// The generators' random numbers (kept under this name for the tests that draw rays
+/// beside generated geometry).
+pub use crate::rng::SplitMix64 as Rng;
 
 /// Appends triangle `(a, b, c)` with its own three vertices.
 fn push_triangle(g: &mut Geometry, a: Vec3, b: Vec3, c: Vec3) {
@@ -246,6 +197,99 @@ pub fn merge(parts: &[Geometry]) -> Geometry {
         g.planes.extend_from_slice(&p.planes);
     }
     g
+}
+
+/// The OBJ text of a `(p, q)` torus knot tube: the curve
+/// `((major + minor cos qt) cos pt, (major + minor cos qt) sin pt, minor sin qt)`,
+/// `t` in `[0, 2 pi)`, swept by a circle of radius `tube` with `sides` vertices at each of
+/// `segments` steps. Faces are quads with texture coordinates (`u` along the curve, `v`
+/// around the tube; the seams get their own `vt`), and no normals, so loading it
+/// exercises quads, UV splits and computed normals. Coordinates are printed to 6
+/// decimals, so the text is the same on every machine (scenes/knot.obj is this output).
+pub fn torus_knot_obj(
+    p: u32,
+    q: u32,
+    segments: u32,
+    sides: u32,
+    [major, minor, tube]: [f64; 3],
+) -> String {
+    use std::f64::consts::TAU;
+    use std::fmt::Write;
+    let curve = |t: f64| {
+        let r = major + minor * (q as f64 * t).cos();
+        [
+            r * (p as f64 * t).cos(),
+            r * (p as f64 * t).sin(),
+            minor * (q as f64 * t).sin(),
+        ]
+    };
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |a: [f64; 3]| {
+        let l = dot(a, a).sqrt();
+        [a[0] / l, a[1] / l, a[2] / l]
+    };
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let mut out = format!(
+        "# ({p}, {q}) torus knot, {segments} x {sides} quads, written by \
+         raypack::scene::generate::torus_knot_obj\no knot\n"
+    );
+    for i in 0..segments {
+        let t = TAU * i as f64 / segments as f64;
+        let h = 1e-4;
+        let c = curve(t);
+        let tangent = unit(sub(curve(t + h), curve(t - h)));
+        // Away from the torus' core circle, made perpendicular to the tangent.
+        let core = [
+            major * (p as f64 * t).cos(),
+            major * (p as f64 * t).sin(),
+            0.0,
+        ];
+        let out0 = sub(c, core);
+        let d = dot(out0, tangent);
+        let n = unit(sub(out0, [tangent[0] * d, tangent[1] * d, tangent[2] * d]));
+        let b = cross(tangent, n);
+        for j in 0..sides {
+            let a = TAU * j as f64 / sides as f64;
+            let (ca, sa) = (a.cos() * tube, a.sin() * tube);
+            let v = [0, 1, 2].map(|k| c[k] + n[k] * ca + b[k] * sa);
+            let _ = writeln!(out, "v {:.6} {:.6} {:.6}", v[0], v[1], v[2]);
+        }
+    }
+    for i in 0..=segments {
+        for j in 0..=sides {
+            let _ = writeln!(
+                out,
+                "vt {:.6} {:.6}",
+                i as f64 / segments as f64,
+                j as f64 / sides as f64
+            );
+        }
+    }
+    let v = |i: u32, j: u32| (i % segments) * sides + (j % sides) + 1;
+    let vt = |i: u32, j: u32| i * (sides + 1) + j + 1;
+    for i in 0..segments {
+        for j in 0..sides {
+            let corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
+            out.push('f');
+            for (a, b) in corners {
+                let _ = write!(out, " {}/{}", v(a, b), vt(a, b));
+            }
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// scenes/knot.obj, the mesh of scenes/part7.toml: a (2, 3) torus knot of 768 quads.
+pub fn part7_knot_obj() -> String {
+    torus_knot_obj(2, 3, 96, 8, [1.6, 0.6, 0.35])
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! its index in OBJ face order (RAYS.md) and a kd-tree leaf can hold any of the first
 //! three kinds. Planes are unbounded and are tested beside the tree, never in it.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// An axis-aligned box. An empty box has `min > max` on every axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -130,6 +130,17 @@ pub struct Geometry {
     pub boxes: Vec<Aabb>,
     /// Infinite planes, with the last ids; tested beside the tree, never in it.
     pub planes: Vec<Plane>,
+}
+
+/// Bounds of the bounded primitives in f64 and their diagonal (planes excluded; all zero
+/// when there are none): the scale the ray sets and the default views are made at.
+pub fn scene_box(geometry: &Geometry) -> (DVec3, DVec3, f64) {
+    let b = geometry.bounds();
+    if b.is_empty() {
+        return (DVec3::ZERO, DVec3::ZERO, 0.0);
+    }
+    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+    (lo, hi, (hi - lo).length())
 }
 
 impl Geometry {

@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod catalog;
 pub mod error;
 pub mod file;
 pub mod generate;
@@ -14,9 +15,9 @@ pub mod obj;
 pub mod spd;
 pub mod texture;
 
-pub use camera::{Camera, CameraFrame};
+pub use camera::{Camera, CameraFrame, View};
 pub use error::{DecodeError, ObjError, SceneError, TextureError, Warning};
-pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere};
+pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere, scene_box};
 pub use light::Light;
 pub use material::Material;
 pub use texture::Texture;

@@ -20,8 +20,7 @@
 //! balls database's published viewpoint (from (2.1, 1.3, 1.7) toward the origin, z up,
 //! 45 degrees); the others get a view framing their bounds from a fixed direction.
 
-use crate::rayset::View;
-use crate::scene::{Geometry, Sphere};
+use crate::scene::{Geometry, Sphere, View};
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 use std::fmt::Write as _;

@@ -8,10 +8,16 @@ pub mod closed;
 
 use glam::Vec3;
 use raypack::accel::kdtree::KdTree;
-use raypack::ray::Ray;
+use raypack::ray::{Hit, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
 use std::path::{Path, PathBuf};
+
+/// A hit as the bits the scalar/packet and kd-tree/brute-force comparisons demand equal:
+/// primitive, then `t`, `u`, `v` as `to_bits`.
+pub fn hit_bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
+    h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+}
 
 /// `../shared/scenes`, relative to the crate root. Panics, naming the path, when absent:
 /// tests that need the benchmark scenes never skip quietly.

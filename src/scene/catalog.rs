@@ -1,5 +1,12 @@
-//! The scenes that `raypack bench`, `trace` and `rays` accept, with the camera their
-//! ray sets are made from:
+//! Scenes by name: what `raypack bench`, `trace`, `rays`, `info` and `render` accept,
+//! with the camera their ray sets are made from. It lives in the library, not in the
+//! command, because the criterion benchmarks (which link only the library) load the
+//! benchmark scenes by the same names.
+//!
+//! [`Scene::from_obj`] is the policy that turns a bare mesh into a scene to render.
+//!
+//! Stage: scene (it reads meshes, scene files and SPD generators, nothing above).
+//! Accepted:
 //!
 //! - the name of a scene in `cameras.toml` of the shared benchmark scenes (`sponza`,
 //!   `bunny`, `conference`, `cornell_box`), found in `$RAYPACK_SCENES` when it is set,
@@ -9,11 +16,13 @@
 //!   else a view of the whole scene box);
 //! - a TOML scene file (its own camera);
 //! - `spd:NAME[:SIZE]`, one of Eric Haines' Standard Procedural Databases
-//!   ([`crate::scene::spd`]) with its published viewpoint.
+//!   ([`super::spd`]) with its published viewpoint.
 
-use super::View;
-use crate::scene::spd::{self, SpdError};
-use crate::scene::{Geometry, ObjError, SceneError, Warning};
+use super::spd::{self, SpdError};
+use super::{
+    Camera, Geometry, Material, ObjError, RenderSettings, Scene, SceneError, View, Warning,
+    scene_box,
+};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -23,27 +32,53 @@ use std::time::Instant;
 /// Environment variable naming the folder of the shared benchmark scenes.
 pub const SCENES_ENV: &str = "RAYPACK_SCENES";
 
+/// Why a scene name or path could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum BenchSceneError {
+    /// A cameras.toml name, but the shared scenes folder is nowhere to be found.
     #[error(
         "scene `{name}`: the benchmark scenes are expected in ../shared/scenes beside the repository (with cameras.toml); looked in {}; set {SCENES_ENV} to their folder",
         looked.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
     )]
-    SharedMissing { name: String, looked: Vec<PathBuf> },
+    SharedMissing {
+        /// The name given.
+        name: String,
+        /// The folders looked in.
+        looked: Vec<PathBuf>,
+    },
+    /// Neither a file, an spd spec, nor a name of cameras.toml.
     #[error("scene `{name}` is not a file, an spd:NAME[:SIZE] scene, or a scene of {} (known: {})", cameras.display(), known.join(", "))]
     Unknown {
+        /// The name given.
         name: String,
+        /// The cameras.toml read.
         cameras: PathBuf,
+        /// The names it holds.
         known: Vec<String>,
     },
+    /// cameras.toml cannot be read or parsed.
     #[error("{}: {message}", path.display())]
-    CamerasFile { path: PathBuf, message: String },
+    CamerasFile {
+        /// The cameras.toml.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A file that is not a scene.
     #[error("{}: {message}", path.display())]
-    Load { path: PathBuf, message: String },
+    Load {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A bad `spd:` spec.
     #[error(transparent)]
     Spd(#[from] SpdError),
+    /// A bad OBJ mesh.
     #[error(transparent)]
     Obj(#[from] ObjError),
+    /// A bad TOML scene.
     #[error(transparent)]
     Scene(#[from] SceneError),
 }
@@ -53,7 +88,9 @@ pub enum BenchSceneError {
 pub struct BenchScene {
     /// What the user named (a cameras.toml name, a path, an spd spec).
     pub name: String,
+    /// Its primitives.
     pub geometry: Geometry,
+    /// The camera its primary set is made from.
     pub view: View,
     /// Seconds spent reading or generating the geometry.
     pub load_seconds: f64,
@@ -64,15 +101,22 @@ pub struct BenchScene {
 /// One entry of cameras.toml.
 #[derive(Clone, Debug, Deserialize)]
 pub struct CameraEntry {
+    /// The mesh, relative to the folder of cameras.toml.
     pub obj: String,
+    /// Camera position.
     pub eye: [f64; 3],
+    /// Point at the image centre.
     pub target: [f64; 3],
+    /// Up hint.
     pub up: [f64; 3],
+    /// Vertical field of view in degrees.
     pub vfov_deg: f64,
+    /// The mesh's triangle count, when recorded.
     pub triangles: Option<u64>,
 }
 
 impl CameraEntry {
+    /// The entry's camera.
     pub fn view(&self) -> View {
         View {
             eye: DVec3::from_array(self.eye),
@@ -139,7 +183,7 @@ pub fn shared_scene(name: &str) -> Result<(CameraEntry, PathBuf), BenchSceneErro
 /// A view of the whole scene box from the front, above and to the right, for meshes
 /// without a standard camera.
 pub fn overview(geometry: &Geometry) -> View {
-    let (lo, hi, diag) = super::standard::scene_box(geometry);
+    let (lo, hi, diag) = scene_box(geometry);
     let centre = (lo + hi) * 0.5;
     let diag = if diag > 0.0 { diag } else { 1.0 };
     View {
@@ -153,7 +197,7 @@ pub fn overview(geometry: &Geometry) -> View {
 /// Reads an OBJ mesh's geometry (triangle ids in file order, as RAYS.md numbers them)
 /// and its warning.
 fn load_obj(path: &Path) -> Result<(Geometry, Vec<Warning>), BenchSceneError> {
-    let mesh = crate::scene::obj::load(path)?;
+    let mesh = super::obj::load(path)?;
     let warnings = mesh.warning(path).into_iter().collect();
     let geometry = Geometry {
         vertices: mesh.positions,
@@ -165,7 +209,7 @@ fn load_obj(path: &Path) -> Result<(Geometry, Vec<Warning>), BenchSceneError> {
 
 /// Reads a TOML scene's geometry, camera and warnings.
 fn load_toml(path: &Path) -> Result<(Geometry, View, Vec<Warning>), BenchSceneError> {
-    let (scene, warnings) = crate::scene::file::load_with_warnings(path)?;
+    let (scene, warnings) = super::file::load_with_warnings(path)?;
     let view = View::from(&scene.camera);
     Ok((scene.geometry, view, warnings))
 }
@@ -215,4 +259,71 @@ pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
         load_seconds: start.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+impl Scene {
+    /// A scene of one OBJ mesh, for rendering the benchmark meshes and any OBJ file: its
+    /// triangles (prim ids as in RAYS.md); the file's normals and texture coordinates
+    /// where it has them, geometric normals where it has none (smoothing normals the
+    /// author did not give would round off hard edges); one material per MTL material,
+    /// with its `Kd` colour and `map_Kd` texture, and the default grey for triangles
+    /// before any `usemtl`; no lights (the caller places them); 1024x768, the size of
+    /// RAYS.md's standard ray sets. Returns the mesh's warnings beside the scene.
+    pub fn from_obj(path: &Path, camera: Camera) -> Result<(Scene, Vec<Warning>), ObjError> {
+        let mesh = super::obj::load(path)?;
+        let warnings = mesh.warning(path).into_iter().collect();
+        let mut textures = Vec::new();
+        let mut materials = Vec::with_capacity(mesh.materials.len() + 1);
+        for m in &mesh.materials {
+            let texture = match &m.diffuse_texture {
+                Some(file) => {
+                    let t = super::texture::load(file).map_err(|source| ObjError::Texture {
+                        path: path.to_path_buf(),
+                        material: m.name.clone(),
+                        source: Box::new(source),
+                    })?;
+                    textures.push(t);
+                    Some(textures.len() as u32 - 1)
+                }
+                None => None,
+            };
+            materials.push(Material {
+                color: m.diffuse,
+                emission: m.emission,
+                texture,
+                ..Material::default()
+            });
+        }
+        let fallback = materials.len() as u32;
+        materials.push(Material::default());
+        let prim_material = mesh
+            .tri_material
+            .iter()
+            .map(|m| m.unwrap_or(fallback))
+            .collect();
+        let scene = Scene {
+            geometry: Geometry {
+                vertices: mesh.positions,
+                triangles: mesh.triangles,
+                ..Default::default()
+            },
+            normals: if mesh.normals_from_file {
+                mesh.normals
+            } else {
+                Vec::new()
+            },
+            uvs: mesh.uvs,
+            prim_material,
+            materials,
+            textures,
+            lights: Vec::new(),
+            camera,
+            settings: RenderSettings {
+                width: 1024,
+                height: 768,
+                ..Default::default()
+            },
+        };
+        Ok((scene, warnings))
+    }
 }
