@@ -15,12 +15,14 @@
 // `!(x >= 0.0)` is how the kernels reject NaN along with the negatives.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+#[warn(missing_docs)]
 pub mod accel;
 pub mod output;
 pub mod ray;
 pub mod rayset;
 pub mod render;
 pub mod scene;
+#[warn(missing_docs)]
 pub mod simd;
 
 /// True when `e` is one of the library's errors about user data (scene files, meshes,
