@@ -64,22 +64,35 @@ pub trait Float:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
+    /// The comparisons' result: its own type, so a mask is never taken for a value.
     type Mask: LaneMask;
+    /// u32 lanes of the same width (primitive ids, float bits).
     type U: Uint<Mask = Self::Mask>;
+    /// 0.0 in every lane.
     const ZERO: Self;
+    /// 1.0 in every lane.
     const ONE: Self;
+    /// `x` in every lane.
     fn splat(x: f32) -> Self;
     /// Lane `i` is `f(i)`.
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
+    /// Lane `i`'s value.
     fn lane(&self, i: usize) -> f32;
+    /// `self < o` per lane (false where either is NaN, as the scalar `<`).
     fn cmp_lt(self, o: Self) -> Self::Mask;
+    /// `self > o` per lane (false where either is NaN).
     fn cmp_gt(self, o: Self) -> Self::Mask;
+    /// `self <= o` per lane (false where either is NaN).
     fn cmp_le(self, o: Self) -> Self::Mask;
+    /// `self >= o` per lane (false where either is NaN).
     fn cmp_ge(self, o: Self) -> Self::Mask;
+    /// `self == o` per lane (`0.0 == -0.0`; false where either is NaN).
     fn cmp_eq(self, o: Self) -> Self::Mask;
     /// Lanes neither NaN nor infinite.
     fn finite(self) -> Self::Mask;
+    /// `|x|` per lane (clears the sign bit).
     fn abs(self) -> Self;
+    /// Correctly rounded square root per lane, as the scalar `f32::sqrt`.
     fn sqrt(self) -> Self;
     /// IEEE-style minimum (a NaN operand gives the other one).
     fn min(self, o: Self) -> Self;
@@ -91,7 +104,9 @@ pub trait Float:
     fn min_lt(self, o: Self) -> Self;
     /// `if a > b { a } else { b }` per lane, glam's `Vec3::max` order. One `maxps`.
     fn max_gt(self, o: Self) -> Self;
+    /// The lanes' IEEE bits.
     fn to_bits(self) -> Self::U;
+    /// Floats from IEEE bits.
     fn from_bits(u: Self::U) -> Self;
     /// `if_true` where `mask` is set, `if_false` elsewhere.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
@@ -99,11 +114,15 @@ pub trait Float:
 
 /// Per-lane u32 values.
 pub trait Uint: Copy + Debug + Send + Sync + Add<Output = Self> + Sub<Output = Self> {
+    /// The comparisons' result, the same type as the float lanes' mask.
     type Mask: LaneMask;
+    /// `x` in every lane.
     fn splat(x: u32) -> Self;
     /// Lane `i` is `f(i)`.
     fn from_fn(f: impl FnMut(usize) -> u32) -> Self;
+    /// Lane `i`'s value.
     fn lane(&self, i: usize) -> u32;
+    /// Unsigned `self > o` per lane.
     fn cmp_gt(self, o: Self) -> Self::Mask;
     /// `if_true` where `mask` is set, `if_false` elsewhere.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;

@@ -132,6 +132,7 @@ impl Mode {
         Mode::Tile64,
     ];
 
+    /// The name the command line takes and the reports print.
     pub fn name(self) -> &'static str {
         match self {
             Mode::Scalar => "scalar",
@@ -226,7 +227,9 @@ pub fn tile_lanes() -> usize {
 
 /// A width the accelerators trace packets at: maps `W` to its [`Accel`] method.
 pub trait PacketWidth: Simd {
+    /// `a`'s closest-hit packet method of this width.
     fn intersect<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> HitPacket<Self>;
+    /// `a`'s any-hit packet method of this width.
     fn occluded<A: Accel + ?Sized>(a: &A, rays: &RayPacket<Self>) -> LaneBits;
 }
 

@@ -13,12 +13,16 @@ use glam::Vec3;
 /// as they were.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket<W: Simd> {
+    /// Origins, x, y and z, one lane per ray.
     pub org: [Vf<W>; 3],
+    /// Directions, x, y and z.
     pub dir: [Vf<W>; 3],
     /// `1 / dir`, computed with a true division (not `rcp`) so traversal matches the
     /// scalar path bit for bit.
     pub inv_dir: [Vf<W>; 3],
+    /// Start of each ray's interval (exclusive).
     pub t_min: Vf<W>,
+    /// End of each ray's interval (exclusive); traversal shrinks it to the best hit.
     pub t_max: Vf<W>,
     /// Lane mask of the rays to trace.
     pub active: Mask<W>,
@@ -154,9 +158,13 @@ pub fn quad_order(width: u32, height: u32) -> Vec<(u32, u32)> {
 /// inactive lane); `t`, `u`, `v` are meaningful only there.
 #[derive(Clone, Copy, Debug)]
 pub struct LaneHits<W: Simd> {
+    /// Lanes that hit.
     pub mask: Mask<W>,
+    /// Hit distances.
     pub t: Vf<W>,
+    /// Barycentric weight of the second vertex (0 for other primitives).
     pub u: Vf<W>,
+    /// Barycentric weight of the third vertex (0 for other primitives).
     pub v: Vf<W>,
 }
 
@@ -176,9 +184,13 @@ impl<W: Simd> LaneHits<W> {
 /// Closest hits of a packet, one lane per ray; a miss has `t = +inf`, `prim = NO_HIT`.
 #[derive(Clone, Copy, Debug)]
 pub struct HitPacket<W: Simd> {
+    /// Hit distances, `+inf` for a miss.
     pub t: Vf<W>,
+    /// Barycentric weight of the second vertex.
     pub u: Vf<W>,
+    /// Barycentric weight of the third vertex.
     pub v: Vf<W>,
+    /// Primitive ids, [`crate::ray::NO_HIT`] for a miss.
     pub prim: Vu<W>,
 }
 

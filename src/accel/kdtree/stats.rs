@@ -9,8 +9,11 @@
 /// Work done by the traversals of one thread.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TraversalCounts {
+    /// Inner nodes visited (a packet step counts once).
     pub node_steps: u64,
+    /// Leaves visited.
     pub leaf_visits: u64,
+    /// Primitive tests run.
     pub prim_tests: u64,
 }
 

@@ -40,8 +40,11 @@ const MAX_GROUPS: usize = TILE_RAYS / 8;
 /// the sum of their entry depths (nodes passed for the whole tile at once).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TileCounts {
+    /// Tiles traced.
     pub tiles: u64,
+    /// Tiles whose rays disagree on a direction sign, traced one packet per group.
     pub fallbacks: u64,
+    /// Sum over tiles of the nodes passed for the whole tile at once.
     pub entry_depth: u64,
 }
 

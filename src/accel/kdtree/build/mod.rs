@@ -203,10 +203,13 @@ struct Builder<'a> {
 /// Figures about one build, for `raypack info` and perf/.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BuildStats {
+    /// Wall time of the build.
     pub build_seconds: f64,
     /// Primitives put in the tree (degenerate triangles are left out).
     pub tree_prims: u32,
+    /// The depth past which every node becomes a leaf (8 + 1.3 log2 N).
     pub max_depth_limit: u32,
+    /// Which builder made the tree.
     pub builder: BuilderKind,
 }
 
