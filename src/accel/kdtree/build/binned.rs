@@ -21,18 +21,11 @@
 
 use super::small::{SMALL, SmallNode};
 use super::sweep::SweepSpace;
-use super::{Builder, Out, PlaneCost, child_cells, tree_bounds};
+use super::{Builder, Out, PlaneCost, Ref, child_cells, tree_bounds};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// A primitive in a node: the bounds of its part inside the node's cell.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Ref {
-    pub bounds: Aabb,
-    pub prim: u32,
-}
 
 /// Bins per axis (Mitsuba's kd-tree builder uses 128).
 const BINS: usize = 128;

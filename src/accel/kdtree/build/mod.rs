@@ -31,6 +31,14 @@ use crate::scene::{Aabb, Geometry, PrimRef};
 use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
 use std::time::Instant;
 
+/// A primitive in a node: the bounds of its part inside the node's cell. Shared by the
+/// binned levels and the sweep they hand their nodes to.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Ref {
+    pub bounds: Aabb,
+    pub prim: u32,
+}
+
 /// Which builder makes the tree.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuilderKind {

@@ -16,9 +16,8 @@
 //!   below them), and the per-node scratch is per thread, so a node allocates nothing
 //!   once the buffers have their size.
 
-use super::binned::Ref;
 use super::small::{SMALL, SmallNode};
-use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, child_cells};
+use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells};
 use crate::accel::kdtree::node::MAX_INDEX;
 use crate::scene::Aabb;
 
