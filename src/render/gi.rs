@@ -6,12 +6,12 @@
 //! so the image is the same for any number of threads and any tile order; ray counts are
 //! summed per tile in tile order.
 
+use super::batch::intersect_rays;
 use super::bsdf::Bsdf;
 use super::film::Film;
 use super::lights::Lights;
 use super::sample::{Pcg32, pixel_rng};
 use super::shade::{Shader, transmission};
-use super::shade_packet::intersect_rays;
 use super::tiles::{Mode, tiles};
 use crate::accel::Accel;
 use crate::ray::{Hit, Ray};

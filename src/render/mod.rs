@@ -6,7 +6,9 @@
 //! tracer ([`path`]) or the photon mapper ([`photon`]), over physically based materials
 //! ([`bsdf`]) and the scene's emitters ([`lights`]).
 
+pub mod batch;
 pub mod bsdf;
+pub mod counts;
 pub mod film;
 pub mod gi;
 pub mod lights;

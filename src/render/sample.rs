@@ -1,6 +1,7 @@
 //! render: sampling. The random numbers, bases and sample patterns of the Monte Carlo
-//! parts of the Whitted tracer (tutorial parts 5 and 6): area-light positions on a
-//! stratified 4x4 grid, glossy directions in a cone around the mirror direction.
+//! parts of the Whitted tracer (tutorial parts 3, 5 and 6): jittered sub-pixel camera
+//! samples, area-light positions on a stratified 4x4 grid, glossy directions in a cone
+//! around the mirror direction.
 //!
 //! Invariants: every generator is seeded from the scene seed, the pixel and the sample
 //! index only ([`pixel_rng`]), so an image never depends on the number of threads or on
@@ -8,6 +9,8 @@
 //! ([`Onb`]) are shared with the ray-set generator and live below both ([`crate::rng`],
 //! [`crate::onb`]).
 
+use crate::ray::Ray;
+use crate::scene::CameraFrame;
 use glam::Vec3;
 
 pub use crate::onb::Onb;
@@ -60,6 +63,23 @@ pub fn stratified(i: u32, r1: f32, r2: f32) -> (f32, f32) {
     let (x, y) = stratum(i);
     let n = STRATA as f32;
     ((x as f32 + r1) / n, (y as f32 + r2) / n)
+}
+
+/// Sample `k` (row-major) of the `n x n` of pixel `(x, y)` whose indices start at
+/// `first`: its ray, jittered inside its cell, and its generator after the jitter.
+pub fn sub_pixel_sample(
+    frame: &CameraFrame,
+    seed: u64,
+    (x, y): (u32, u32),
+    n: u32,
+    first: u32,
+    k: u32,
+) -> (Ray, Pcg32) {
+    let (i, j) = (k % n, k / n);
+    let mut rng = pixel_rng(seed, x, y, first + k);
+    let fx = (i as f32 + rng.next_f32()) / n as f32;
+    let fy = (j as f32 + rng.next_f32()) / n as f32;
+    (frame.ray(x as f32 + fx, y as f32 + fy), rng)
 }
 
 #[cfg(test)]

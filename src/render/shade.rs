@@ -45,95 +45,13 @@
 //! surface (shadow acne). Both terms scale with the scene, so a scene rendered at 1e-4
 //! or 1e4 times its size gives the same image.
 
+use super::batch::ShadowBatch;
+pub use super::counts::{Batching, PacketCounts, RayCounts};
 use super::sample::{Pcg32, sample_cone, stratified};
-use super::shade_packet::ShadowBatch;
 use crate::accel::{Accel, Mode};
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{Light, Material, PrimRef, Scene, Sphere};
 use glam::{Vec2, Vec3};
-use std::ops::AddAssign;
-
-/// Rays traced, by kind. Summed over tiles, so totals never depend on thread count.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RayCounts {
-    pub primary: u64,
-    pub shadow: u64,
-    /// Mirror rays, including totally internally reflected ones.
-    pub reflection: u64,
-    pub refraction: u64,
-    pub glossy: u64,
-    /// How the packet path traced these rays; all zero in scalar mode. Not part of
-    /// [`RayCounts::total`]: the same rays, counted by how they were traced.
-    pub packets: PacketCounts,
-}
-
-/// Rays of one kind traced in packets or, where no packet formed, one by one.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Batching {
-    /// Packets traced.
-    pub packets: u64,
-    /// Active lanes of those packets.
-    pub packet_rays: u64,
-    /// Rays traced alone because too few rays of their kind were ready together.
-    pub single_rays: u64,
-}
-
-impl Batching {
-    /// Counts one packet of `lanes` active rays.
-    pub fn packet(&mut self, lanes: usize) {
-        self.packets += 1;
-        self.packet_rays += lanes as u64;
-    }
-}
-
-impl AddAssign for Batching {
-    fn add_assign(&mut self, o: Batching) {
-        self.packets += o.packets;
-        self.packet_rays += o.packet_rays;
-        self.single_rays += o.single_rays;
-    }
-}
-
-/// [`Batching`] by ray kind, in packet mode.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PacketCounts {
-    /// Camera rays: pixel quads and supersampling's sub-pixel samples.
-    pub primary: Batching,
-    /// Shadow rays toward the samples of one light from one hit point.
-    pub shadow: Batching,
-    /// Mirror and refraction rays (totally internally reflected ones included) spawned
-    /// by the lanes of packets. Those below a glossy ray are shaded one hit at a time by
-    /// the scalar steps (the glossy rays share one generator) and are not counted here.
-    pub secondary: Batching,
-    /// Glossy rays of one hit point.
-    pub glossy: Batching,
-}
-
-impl AddAssign for PacketCounts {
-    fn add_assign(&mut self, o: PacketCounts) {
-        self.primary += o.primary;
-        self.shadow += o.shadow;
-        self.secondary += o.secondary;
-        self.glossy += o.glossy;
-    }
-}
-
-impl RayCounts {
-    pub fn total(&self) -> u64 {
-        self.primary + self.shadow + self.reflection + self.refraction + self.glossy
-    }
-}
-
-impl AddAssign for RayCounts {
-    fn add_assign(&mut self, o: RayCounts) {
-        self.primary += o.primary;
-        self.shadow += o.shadow;
-        self.reflection += o.reflection;
-        self.refraction += o.refraction;
-        self.glossy += o.glossy;
-        self.packets += o.packets;
-    }
-}
 
 /// What a primary ray saw, compared between neighbouring pixels by adaptive
 /// anti-aliasing (tutorial part 3): a pixel whose signature differs from its left or
@@ -202,7 +120,7 @@ pub struct Shader<'a> {
     /// Offset of secondary ray origins from the surface.
     pub epsilon: f32,
     /// Scalar, or the packet width the shadow rays of an area light's samples and the
-    /// glossy rays of a hit are tested at ([`super::shade_packet::ShadowBatch`]); the
+    /// glossy rays of a hit are tested at ([`super::batch::ShadowBatch`]); the
     /// answers, and so the image, are the same.
     pub mode: Mode,
 }
@@ -543,7 +461,7 @@ impl<'a> Shader<'a> {
         path.counts.glossy += count as u64;
         let next = at.next(0.25, at.medium);
         let mut sum = Vec3::ZERO;
-        for chunk in rays.chunks(super::shade_packet::batch_size(self.mode)) {
+        for chunk in rays.chunks(super::batch::batch_size(self.mode)) {
             let hits = self.closest_hits(chunk, &mut path.counts.packets.glossy);
             for (r, hit) in chunk.iter().zip(hits) {
                 sum += self.finish(r, hit, next, path).0;

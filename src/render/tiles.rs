@@ -14,12 +14,11 @@
 //! (tiling, adaptive refinement, counting) is shared.
 
 use super::film::Film;
-use super::sample::{Pcg32, pixel_rng};
+use super::sample::{pixel_rng, sub_pixel_sample};
 use super::shade::{HitSignature, RayCounts, Shader};
 use super::shade_packet::{shade_block_packet, supersample_packet};
 use crate::accel::Accel;
 pub use crate::accel::Mode;
-use crate::ray::Ray;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
 use crate::simd::{MAX_LANES, Simd, W4, W8, W16, block_pixel};
 use glam::Vec3;
@@ -172,23 +171,6 @@ pub fn supersample(
         sum += shader.trace_primary(&ray, &mut rng, counts).0;
     }
     sum / (n * n) as f32
-}
-
-/// Sample `k` (row-major) of the `n x n` of pixel `(x, y)` whose indices start at
-/// `first`: its ray, jittered inside its cell, and its generator after the jitter.
-pub fn sub_pixel_sample(
-    frame: &CameraFrame,
-    seed: u64,
-    (x, y): (u32, u32),
-    n: u32,
-    first: u32,
-    k: u32,
-) -> (Ray, Pcg32) {
-    let (i, j) = (k % n, k / n);
-    let mut rng = pixel_rng(seed, x, y, first + k);
-    let fx = (i as f32 + rng.next_f32()) / n as f32;
-    let fy = (j as f32 + rng.next_f32()) / n as f32;
-    (frame.ray(x as f32 + fx, y as f32 + fy), rng)
 }
 
 struct TileContext<'a> {

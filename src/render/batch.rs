@@ -1,0 +1,105 @@
+//! render: rays of one hit point traced together (shadow rays toward a light's samples,
+//! glossy rays): queued, then tested as one packet of the mode's width, or one by one in
+//! scalar mode. Below both shading paths, which share it.
+
+use super::counts::RayCounts;
+use crate::accel::packet::RayPacket;
+use crate::accel::{Accel, Mode, PacketTrace, PacketWidth};
+use crate::ray::{Hit, Ray};
+use crate::simd::{MAX_LANES, W4, W8, W16};
+use glam::Vec3;
+
+/// Closest hits of at most one packet of `rays`, traced as a packet at `mode`'s width.
+pub fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_LANES] {
+    fn at<W: PacketWidth>(accel: &dyn Accel, rays: &[Ray]) -> [Hit; MAX_LANES] {
+        let p = accel.intersect_packet(&RayPacket::<W>::from_rays(rays));
+        std::array::from_fn(|i| if i < W::LANES { p.lane(i) } else { Hit::MISS })
+    }
+    match mode {
+        Mode::Packet8 => at::<W8>(accel, rays),
+        Mode::Packet16 => at::<W16>(accel, rays),
+        _ => at::<W4>(accel, rays),
+    }
+}
+
+/// Occlusion bits of at most one packet of `rays`, traced as a packet at `mode`'s width.
+fn occluded_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> u32 {
+    match mode {
+        Mode::Packet8 => accel.occluded_packet(&RayPacket::<W8>::from_rays(rays)),
+        Mode::Packet16 => accel.occluded_packet(&RayPacket::<W16>::from_rays(rays)),
+        _ => accel.occluded_packet(&RayPacket::<W4>::from_rays(rays)),
+    }
+}
+
+/// Shadow rays of one hit point, queued in sample order and tested a packet width at a
+/// time: as one packet in a packet mode, one by one in scalar mode. Each unoccluded ray is
+/// handed back, in queue order, with the value queued beside it.
+pub struct ShadowBatch {
+    rays: [Ray; MAX_LANES],
+    values: [f32; MAX_LANES],
+    len: usize,
+    mode: Mode,
+}
+
+impl ShadowBatch {
+    pub fn new(mode: Mode) -> ShadowBatch {
+        ShadowBatch {
+            rays: [Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0); MAX_LANES],
+            values: [0.0; MAX_LANES],
+            len: 0,
+            mode,
+        }
+    }
+
+    /// Queues `ray`; once a packet width of rays is queued (4 in scalar mode), tests them
+    /// (see [`Self::flush`]).
+    #[inline]
+    pub fn push(
+        &mut self,
+        accel: &dyn Accel,
+        ray: Ray,
+        value: f32,
+        lit: &mut impl FnMut(&Ray, f32),
+        counts: &mut RayCounts,
+    ) {
+        self.rays[self.len] = ray;
+        self.values[self.len] = value;
+        self.len += 1;
+        if self.len == batch_size(self.mode) {
+            self.flush(accel, lit, counts);
+        }
+    }
+
+    /// Tests the queued rays and calls `lit` for each unoccluded one, in queue order.
+    /// Counts the packet or the single rays in `counts.packets.shadow` in packet mode.
+    pub fn flush(
+        &mut self,
+        accel: &dyn Accel,
+        lit: &mut impl FnMut(&Ray, f32),
+        counts: &mut RayCounts,
+    ) {
+        let queued = &self.rays[..self.len];
+        let packets = self.mode != Mode::Scalar;
+        let occluded = if packets && queued.len() > 1 {
+            counts.packets.shadow.packet(queued.len());
+            occluded_rays(accel, self.mode, queued)
+        } else {
+            if packets {
+                counts.packets.shadow.single_rays += queued.len() as u64;
+            }
+            (0..queued.len()).fold(0, |m, i| m | ((accel.occluded(&queued[i]) as u32) << i))
+        };
+        for i in 0..self.len {
+            if occluded & (1 << i) == 0 {
+                lit(&self.rays[i], self.values[i]);
+            }
+        }
+        self.len = 0;
+    }
+}
+
+/// Rays of one hit point batched together in `mode` (glossy rays, area-light shadow
+/// rays): the packet width, and 4 in scalar mode, whose batches only order the work.
+pub fn batch_size(mode: Mode) -> usize {
+    mode.packet_size().max(4)
+}
