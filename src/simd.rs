@@ -166,12 +166,20 @@ pub struct VBool<V>(V);
 /// any 4 or 8 consecutive rays of an image set in RAYS.md's packet order.
 #[inline]
 pub fn block_pixel<W: Simd>(i: usize) -> (u32, u32) {
-    let (i, quads_per_row) = (i as u32, W::SHAPE.0 / 2);
-    let (q, p) = (i / 4, i % 4);
+    let quads_per_row = W::SHAPE.0 as usize / 2;
+    let (q, (dx, dy)) = (i / 4, quad_lane(i));
     (
-        (q % quads_per_row) * 2 + (p & 1),
-        (q / quads_per_row) * 2 + (p >> 1),
+        (q % quads_per_row) as u32 * 2 + dx,
+        (q / quads_per_row) as u32 * 2 + dy,
     )
+}
+
+/// Pixel offset of lane `i % 4` inside its 2x2 quad, in RAYS.md's order: (0,0), (1,0),
+/// (0,1), (1,1). The one definition of the quad, for packets and ray files alike.
+#[inline]
+pub fn quad_lane(i: usize) -> (u32, u32) {
+    let p = (i % 4) as u32;
+    (p & 1, p >> 1)
 }
 
 macro_rules! width {
@@ -379,10 +387,37 @@ pub fn native_lanes() -> usize {
 }
 
 /// The largest absolute component per lane, `max_gt(max_gt(|x|, |y|), |z|)`: the twin
-/// of the scalar `triaccel::max_abs`.
+/// of [`scalar::max_abs`].
 #[inline]
 pub fn max_abs<F: Float>(v: &[F; 3]) -> F {
     v[0].abs().max_gt(v[1].abs()).max_gt(v[2].abs())
+}
+
+/// The scalar twins of [`Float::min_lt`], [`Float::max_gt`] and [`max_abs`], kept beside
+/// them so the scalar and packet kernels pick values in the same order, bit for bit.
+pub mod scalar {
+    use glam::Vec3;
+
+    /// `if a < b { a } else { b }`: the order of [`super::Float::min_lt`] (and of glam's
+    /// `Vec3::min`: the second operand wins on NaN or equality).
+    #[inline]
+    pub fn min_lt(a: f32, b: f32) -> f32 {
+        if a < b { a } else { b }
+    }
+
+    /// `if a > b { a } else { b }`: the order of [`super::Float::max_gt`].
+    #[inline]
+    pub fn max_gt(a: f32, b: f32) -> f32 {
+        if a > b { a } else { b }
+    }
+
+    /// The largest absolute component, `max_gt(max_gt(|x|, |y|), |z|)`: the order of
+    /// [`super::max_abs`]. The triangle test's error bound grows with it (of the origin
+    /// and of the direction), and so do the kd-tree's plane margins.
+    #[inline]
+    pub fn max_abs(v: Vec3) -> f32 {
+        max_gt(max_gt(v.x.abs(), v.y.abs()), v.z.abs())
+    }
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use raypack::accel::PacketWidth;
 use raypack::accel::kdtree::traverse_packet::packet_split_count;
 use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
-use raypack::accel::packet::{HitPacket, LaneHits, RayPacket, quad_order};
+use raypack::accel::packet::{HitPacket, LaneHits, RayPacket};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
 use raypack::accel::prims_packet::{
     intersect_box_packet, intersect_plane_packet, intersect_sphere_packet,
@@ -529,7 +529,7 @@ fn block_packets<W: Simd>(
 ) -> Vec<Vec<Ray>> {
     let frame = camera.frame(width, height);
     let (bw, bh) = W::SHAPE;
-    quad_order(width, height)
+    common::quad_corners(width, height)
         .into_iter()
         .filter(|&(x, y)| x + bw <= width && y + bh <= height)
         .step_by(stride)
@@ -655,7 +655,7 @@ fn check_tree_scene_at<W: PacketWidth>(
         // Ray tiles of the same rays: camera rays in packet order (16x4 pixel blocks),
         // random, adversarial, coherent and shadow rays.
         let frame = camera.frame(128, 96);
-        let camera_rays: Vec<Ray> = quad_order(128, 96)
+        let camera_rays: Vec<Ray> = common::quad_corners(128, 96)
             .into_iter()
             .flat_map(|(x, y)| RayPacket::<W4>::camera_block(&frame, x, y))
             .collect();

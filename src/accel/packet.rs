@@ -133,27 +133,6 @@ impl<W: Simd> RayPacket<W> {
     }
 }
 
-/// Top-left pixels of the 2x2 quads of a `width` x `height` image in RAYS.md's packet
-/// order: quads row-major inside 16x16 tiles, tiles row-major. Edge tiles are cut to the
-/// image; `width` and `height` must be even.
-pub fn quad_order(width: u32, height: u32) -> Vec<(u32, u32)> {
-    assert!(
-        width.is_multiple_of(2) && height.is_multiple_of(2),
-        "quads need an even image size"
-    );
-    let mut quads = Vec::with_capacity((width * height / 4) as usize);
-    for ty in (0..height).step_by(16) {
-        for tx in (0..width).step_by(16) {
-            for y in (ty..(ty + 16).min(height)).step_by(2) {
-                for x in (tx..(tx + 16).min(width)).step_by(2) {
-                    quads.push((x, y));
-                }
-            }
-        }
-    }
-    quads
-}
-
 /// One primitive's hits against a packet: lane `i` hit where `mask` is set (never for an
 /// inactive lane); `t`, `u`, `v` are meaningful only there.
 #[derive(Clone, Copy, Debug)]
@@ -245,26 +224,5 @@ impl<W: Simd> HitPacket<W> {
             v: self.v.lane(i),
             prim: self.prim.lane(i),
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn quad_order_covers_every_pixel_once_in_tiles() {
-        let quads = quad_order(48, 20);
-        let mut seen = vec![0u8; 48 * 20];
-        for &(x, y) in &quads {
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                seen[((y + dy) * 48 + x + dx) as usize] += 1;
-            }
-        }
-        assert!(seen.iter().all(|&n| n == 1));
-        // The first tile's 64 quads come before the second tile's.
-        assert_eq!(quads[7], (14, 0));
-        assert_eq!(quads[8], (0, 2));
-        assert_eq!(quads[64], (16, 0));
     }
 }

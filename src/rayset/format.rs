@@ -141,10 +141,11 @@ impl RaySet {
 #[inline]
 pub fn packet_pixel(i: usize, width: u32) -> (u32, u32) {
     let tiles_x = (width / TILE) as usize;
-    let (tile, quad, lane) = (i / 256, (i % 256) / 4, i % 4);
-    let x = (tile % tiles_x) * 16 + (quad % 8) * 2 + (lane & 1);
-    let y = (tile / tiles_x) * 16 + (quad / 8) * 2 + (lane >> 1);
-    (x as u32, y as u32)
+    let (tile, quad) = (i / 256, (i % 256) / 4);
+    let (dx, dy) = crate::simd::quad_lane(i);
+    let x = (tile % tiles_x) * 16 + (quad % 8) * 2;
+    let y = (tile / tiles_x) * 16 + (quad / 8) * 2;
+    (x as u32 + dx, y as u32 + dy)
 }
 
 /// Index of pixel `(x, y)` in an image set `width` pixels wide; inverse of [`packet_pixel`].

@@ -25,7 +25,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Tile side in pixels: 32x32 pixels are 256 quads, enough work per task for rayon, and
-/// a multiple of every packet shape.
+/// a multiple of every packet shape. This only splits the render's work; it is not
+/// RAYS.md's 16-pixel tile (`rayset::TILE`), which fixes the order of rays in files and
+/// which the renderer never needs.
 pub const TILE: u32 = 32;
 
 /// A rectangle of pixels; edge tiles may be smaller than [`TILE`].

@@ -216,3 +216,12 @@ pub fn mixed_primitives() -> Geometry {
     });
     g
 }
+
+/// Top-left pixels of the 2x2 quads of a `width x height` image set in RAYS.md's packet
+/// order (both multiples of 16), read off the library's own ray order.
+pub fn quad_corners(width: u32, height: u32) -> Vec<(u32, u32)> {
+    (0..(width * height) as usize)
+        .step_by(4)
+        .map(|i| raypack::rayset::packet_pixel(i, width))
+        .collect()
+}
