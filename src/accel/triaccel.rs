@@ -54,7 +54,6 @@ pub use super::axis::MOD3;
 use super::watertight;
 use crate::ray::Ray;
 use crate::scene::Geometry;
-use crate::simd::scalar::{max_abs, min_lt};
 use glam::{DVec3, Vec3};
 
 /// Unit roundoff of f32.
@@ -70,6 +69,26 @@ pub const C2: f32 = 64.0;
 /// first-order bound on how far TriAccel's `t` lies from the exact rule's (`28 eps`),
 /// times four. Lanes farther than this outside `(t_min, t_max)` leave at once.
 pub const T_SLACK: f32 = 1.0 / (1u32 << 17) as f32;
+
+/// `if a < b { a } else { b }`: the order of [`crate::simd::Float::min_lt`].
+#[inline]
+pub fn min_lt(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// `if a > b { a } else { b }`: the order of [`crate::simd::Float::max_gt`].
+#[inline]
+pub fn max_gt(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The largest absolute component, `max_gt(max_gt(|x|, |y|), |z|)`: the order of
+/// [`crate::simd::max_abs`]. The triangle test's error bound grows with it (of the
+/// origin and of the direction), and so do the kd-tree's plane margins.
+#[inline]
+pub fn max_abs(v: Vec3) -> f32 {
+    max_gt(max_gt(v.x.abs(), v.y.abs()), v.z.abs())
+}
 
 /// The answer of the exact edge rule for a ray within the bound of an edge: its hit
 /// (`t`, `u`, `v` from [`watertight::intersect`]) when `t_min < t < t_max`. The scalar

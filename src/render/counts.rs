@@ -31,6 +31,7 @@ pub struct Batching {
 
 impl Batching {
     /// Counts one packet of `lanes` active rays.
+    #[inline]
     pub fn packet(&mut self, lanes: usize) {
         self.packets += 1;
         self.packet_rays += lanes as u64;

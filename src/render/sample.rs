@@ -67,6 +67,7 @@ pub fn stratified(i: u32, r1: f32, r2: f32) -> (f32, f32) {
 
 /// Sample `k` (row-major) of the `n x n` of pixel `(x, y)` whose indices start at
 /// `first`: its ray, jittered inside its cell, and its generator after the jitter.
+#[inline]
 pub fn sub_pixel_sample(
     frame: &CameraFrame,
     seed: u64,

@@ -28,10 +28,10 @@
 use super::KdTree;
 use super::build::MAX_DEPTH;
 use super::stats::bump;
+use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
-use crate::simd::scalar::{max_abs, max_gt, min_lt};
 use crate::simd::{LaneBits, W4, W8, W16};
 use glam::Vec3;
 use std::mem::MaybeUninit;
