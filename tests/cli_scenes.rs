@@ -80,8 +80,19 @@ fn the_cornell_box_by_name_is_lit_by_its_emitter_under_global_illumination() {
         by_name == by_file,
         "cornell_box by name and by scene file differ"
     );
-    let png = render(&dir, "cornell_box", "n.png", &gi);
+    let json = dir.join("gi.json");
+    let mut with_json = gi.to_vec();
+    with_json.extend(["--json", s(&json)]);
+    let png = render(&dir, "cornell_box", "n.png", &with_json);
     assert!(brightness(&png) > 20.0, "the box renders dark");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(v["integrator"], "path");
+    assert_eq!(v["rays"]["camera"], 64 * 48 * 4);
+    let kinds: u64 = ["camera", "bounce", "shadow", "gather", "photon"]
+        .iter()
+        .map(|k| v["rays"][k].as_u64().unwrap())
+        .sum();
+    assert_eq!(v["rays"]["total"].as_u64().unwrap(), kinds);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

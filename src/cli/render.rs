@@ -255,6 +255,35 @@ struct Report<'a> {
     mrays_per_second: f64,
 }
 
+impl<'a> Report<'a> {
+    /// The report of a render of `scene` (after the overrides) that took `times` =
+    /// `[build, render]` seconds and traced `rays` (by kind, and `total`).
+    fn new(
+        args: &'a Args,
+        scene: &Scene,
+        threads: usize,
+        [build_seconds, render_seconds]: [f64; 2],
+        integrator: &'a str,
+        rays: BTreeMap<&'static str, u64>,
+    ) -> Report<'a> {
+        let total = rays.get("total").copied().unwrap_or(0);
+        Report {
+            scene: &args.scene,
+            output: &args.output,
+            width: scene.settings.width,
+            height: scene.settings.height,
+            threads,
+            mode: args.mode.name(),
+            primitives: scene.geometry.prim_count(),
+            build_seconds,
+            render_seconds,
+            integrator,
+            rays,
+            mrays_per_second: total as f64 / render_seconds.max(1e-9) / 1e6,
+        }
+    }
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Checked first: a name the film cannot be written under, or a folder it cannot be
     // written in, would only fail after the whole render.
@@ -331,20 +360,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ("refraction", c.refraction),
         ("glossy", c.glossy),
     ]);
-    let report = Report {
-        scene: &args.scene,
-        output: &args.output,
-        width: s.width,
-        height: s.height,
-        threads,
-        mode: args.mode.name(),
-        primitives: scene.geometry.prim_count(),
-        build_seconds,
-        render_seconds,
-        integrator: "whitted",
-        rays,
-        mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
-    };
+    let times = [build_seconds, render_seconds];
+    let report = Report::new(&args, &scene, threads, times, "whitted", rays);
     finish(&args, &report, &rendered.film, &options)
 }
 
@@ -478,23 +495,12 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
         ("gather", c.gather),
         ("photon", c.photon),
     ]);
-    let report = Report {
-        scene: &args.scene,
-        output: &args.output,
-        width: s.width,
-        height: s.height,
-        threads,
-        mode: args.mode.name(),
-        primitives: scene.geometry.prim_count(),
-        build_seconds,
-        render_seconds,
-        integrator: match args.integrator {
-            IntegratorArg::Path => "path",
-            _ => "photon",
-        },
-        rays,
-        mrays_per_second: c.total() as f64 / render_seconds.max(1e-9) / 1e6,
+    let integrator = match args.integrator {
+        IntegratorArg::Path => "path",
+        _ => "photon",
     };
+    let times = [build_seconds, render_seconds];
+    let report = Report::new(args, &scene, threads, times, integrator, rays);
     finish(args, &report, &rendered.film, options)
 }
 
