@@ -274,18 +274,7 @@ fn stress_meshes() {
 
 #[test]
 fn every_shipped_scene_standard_sets() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let mut paths: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
-        .map(|e| e.expect("directory entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    paths.sort();
-    assert!(
-        paths.len() >= 7,
-        "expected the tutorial scenes in {}",
-        dir.display()
-    );
+    let paths = common::shipped_scenes();
     for path in &paths {
         let scene =
             raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
