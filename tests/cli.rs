@@ -53,7 +53,7 @@ fn trace_writes_the_hits_of_the_in_process_scalar_path() {
         if set == "primary" {
             assert!(hit_count < rays.len(), "and misses");
         }
-        for mode in ["scalar", "packet"] {
+        for mode in ["scalar", "packet", "stream"] {
             let hits_path = dir.join(format!("{set}.{mode}.hits"));
             check(
                 &raypack(&[
@@ -243,8 +243,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     assert_eq!(v["spheres"], 91);
     assert!(v["build_seconds"].as_f64().unwrap() >= 0.0);
     let rows = v["results"].as_array().unwrap();
-    assert_eq!(rows.len(), 3 * 5 * 2, "sets x modes x thread counts");
-    let modes: Vec<_> = rows[..5]
+    assert_eq!(rows.len(), 3 * 6 * 2, "sets x modes x thread counts");
+    let modes: Vec<_> = rows[..6]
         .iter()
         .map(|r| {
             (
@@ -261,7 +261,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
             ("packet4", 4, 4),
             ("packet8", 8, 8),
             ("packet16", 16, 16),
-            ("tile64", raypack::accel::tile_lanes() as u64, 64)
+            ("tile64", raypack::accel::tile_lanes() as u64, 64),
+            ("stream", 1, 1)
         ],
         "every mode with its width and packet size"
     );

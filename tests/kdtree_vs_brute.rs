@@ -357,18 +357,7 @@ fn cornell_box_camera_rays_match_brute_force() {
 
 #[test]
 fn every_shipped_scene_matches_brute_force() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let mut paths: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
-        .map(|e| e.expect("directory entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    paths.sort();
-    assert!(
-        paths.len() >= 7,
-        "expected the tutorial scenes in {}",
-        dir.display()
-    );
+    let paths = common::shipped_scenes();
     for (i, path) in paths.iter().enumerate() {
         let scene =
             raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

@@ -10,6 +10,8 @@
 //! Secondary rays traced together keep each pixel's random draws in the scalar order
 //! (src/render/shade_packet.rs).
 
+mod common;
+
 use raypack::accel::kdtree::KdTree;
 use raypack::render::shade::{Batching, PacketCounts};
 use raypack::render::{Mode, RayCounts, Rendered, render};
@@ -18,18 +20,7 @@ use std::path::Path;
 
 #[test]
 fn every_scene_renders_identically_in_scalar_and_packet_mode() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let mut paths: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.expect("directory entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    paths.sort();
-    assert!(
-        paths.len() >= 7,
-        "expected the tutorial scenes in {}",
-        dir.display()
-    );
+    let paths = common::shipped_scenes();
     for path in &paths {
         let mut scene =
             raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

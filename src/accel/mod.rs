@@ -1,7 +1,7 @@
 //! Acceleration structures: the narrow interface the renderer traces through.
 //!
 //! As in pbrt-v4, an accelerator answers `bounds`, closest-hit `intersect` and any-hit
-//! `occluded`, for single rays and for packets. [`brute::BruteForce`] tests every
+//! `occluded`, for single rays, for packets and for streams of unrelated rays. [`brute::BruteForce`] tests every
 //! primitive and is the oracle; [`kdtree::KdTree`] is the fast path. Both hold the same
 //! [`Prims`] records, so a disagreement points at traversal, not at a primitive test.
 
@@ -84,6 +84,30 @@ pub trait Accel: Sync {
         }
         bits
     }
+
+    /// Closest hits of a stream of unrelated rays (any length, any directions) into
+    /// `hits` (same length, same order), misses as [`Hit::MISS`]: Embree's
+    /// `rtcIntersect1M`. Each answer is bit for bit [`Accel::intersect`]'s; the work may
+    /// be done in any order, so an accelerator can keep several rays in flight.
+    fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+        for (r, h) in rays.iter().zip(hits.iter_mut()) {
+            *h = self.intersect(r).unwrap_or(Hit::MISS);
+        }
+    }
+
+    /// Any-hit answers of a stream of unrelated rays into `occluded` (same length, same
+    /// order), each [`Accel::occluded`]'s.
+    fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_stream: one answer per ray"
+        );
+        for (r, o) in rays.iter().zip(occluded.iter_mut()) {
+            *o = self.occluded(r);
+        }
+    }
 }
 
 /// The packet entry points' default: each active lane through the single-ray method.
@@ -120,16 +144,21 @@ pub enum Mode {
     /// 64 consecutive rays as one tile of SIMD groups of the native width, sharing an
     /// entry point ([`kdtree::traverse_tile`]).
     Tile64,
+    /// Each chunk of rays as one stream ([`Accel::intersect_stream`]): for incoherent
+    /// rays, traced one ray per kernel but several in flight. The renderer traces this
+    /// mode's rays as in scalar mode.
+    Stream,
 }
 
 impl Mode {
     /// Every mode, narrowest first.
-    pub const ALL: [Mode; 5] = [
+    pub const ALL: [Mode; 6] = [
         Mode::Scalar,
         Mode::Packet4,
         Mode::Packet8,
         Mode::Packet16,
         Mode::Tile64,
+        Mode::Stream,
     ];
 
     /// The name the command line takes and the reports print.
@@ -140,13 +169,14 @@ impl Mode {
             Mode::Packet8 => "packet8",
             Mode::Packet16 => "packet16",
             Mode::Tile64 => "tile64",
+            Mode::Stream => "stream",
         }
     }
 
-    /// Rays traced together (1 for scalar).
+    /// Rays traced together (1 for scalar and stream, whose rays share nothing).
     pub fn packet_size(self) -> usize {
         match self {
-            Mode::Scalar => 1,
+            Mode::Scalar | Mode::Stream => 1,
             Mode::Packet4 => 4,
             Mode::Packet8 => 8,
             Mode::Packet16 => 16,
@@ -163,11 +193,13 @@ impl Mode {
     }
 
     /// The packet mode that traces this mode's SIMD groups one at a time: a tile's
-    /// groups for [`Mode::Tile64`], the mode itself otherwise.
+    /// groups for [`Mode::Tile64`], scalar for [`Mode::Stream`], the mode itself
+    /// otherwise.
     pub fn group_mode(self) -> Mode {
         match (self, tile_lanes()) {
             (Mode::Tile64, 16) => Mode::Packet16,
             (Mode::Tile64, _) => Mode::Packet8,
+            (Mode::Stream, _) => Mode::Scalar,
             (m, _) => m,
         }
     }
@@ -213,8 +245,9 @@ impl std::str::FromStr for Mode {
             "packet8" => Ok(Mode::Packet8),
             "packet16" => Ok(Mode::Packet16),
             "tile64" => Ok(Mode::Tile64),
+            "stream" => Ok(Mode::Stream),
             _ => Err(format!(
-                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, tile64, packet or all)"
+                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, tile64, stream, packet or all)"
             )),
         }
     }

@@ -161,7 +161,7 @@ fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
         [split, total]
     }
     match mode {
-        Mode::Scalar => [0, set.len()],
+        Mode::Scalar | Mode::Stream => [0, set.len()],
         Mode::Packet4 => of::<W4>(set),
         Mode::Packet8 => of::<W8>(set),
         Mode::Packet16 => of::<W16>(set),
@@ -370,7 +370,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .0
         .iter()
         .copied()
-        .filter(|&m| m != Mode::Scalar)
+        .filter(|&m| m.packet_size() > 1)
         .collect();
     let split_packets: std::collections::BTreeMap<
         String,

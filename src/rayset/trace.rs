@@ -2,7 +2,8 @@
 //! ray, the packet modes call `intersect_packet`/`occluded_packet` on every 4, 8 or 16
 //! consecutive rays (in an image set in RAYS.md's packet order, a 2x2 quad, a 4x2 block
 //! or two 4x2 blocks side by side; lanes past the end of the set are inactive), and
-//! tile mode calls `intersect_tile`/`occluded_tile` on every 64 (a 16x4 block).
+//! tile mode calls `intersect_tile`/`occluded_tile` on every 64 (a 16x4 block), and
+//! stream mode calls `intersect_stream`/`occluded_stream` on each chunk as a whole.
 //!
 //! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a
 //! chunk to packets, traces them and folds every answer into a [`Checksum`] (hit count
@@ -86,6 +87,7 @@ pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, ou
                 accel.intersect_tile(tile, ht);
             }
         }
+        Mode::Stream => accel.intersect_stream(rays, out),
     }
 }
 
@@ -142,6 +144,16 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
             for tile in rays.chunks(TILE_RAYS) {
                 c.hits += accel.occluded_tile(tile).count_ones() as u64;
             }
+        }
+        (Mode::Stream, Query::Closest) => {
+            let mut hits = vec![Hit::MISS; rays.len()];
+            accel.intersect_stream(rays, &mut hits);
+            return Checksum::of_hits(&hits);
+        }
+        (Mode::Stream, Query::Occluded) => {
+            let mut occluded = vec![false; rays.len()];
+            accel.occluded_stream(rays, &mut occluded);
+            c.hits = occluded.iter().filter(|&&o| o).count() as u64;
         }
     }
     c

@@ -113,7 +113,7 @@ pub fn block_offsets(mode: Mode) -> Vec<(u32, u32)> {
         Mode::Scalar | Mode::Packet4 => of::<W4>(),
         Mode::Packet8 => of::<W8>(),
         Mode::Packet16 => of::<W16>(),
-        Mode::Tile64 => block_offsets(mode.group_mode()),
+        Mode::Tile64 | Mode::Stream => block_offsets(mode.group_mode()),
     }
 }
 
@@ -137,7 +137,9 @@ pub fn shade_block(
         Mode::Packet4 => shade_block_packet::<W4>(shader, frame, seed, pixels, counts),
         Mode::Packet8 => shade_block_packet::<W8>(shader, frame, seed, pixels, counts),
         Mode::Packet16 => shade_block_packet::<W16>(shader, frame, seed, pixels, counts),
-        Mode::Tile64 => shade_block(mode.group_mode(), shader, frame, seed, pixels, counts),
+        Mode::Tile64 | Mode::Stream => {
+            shade_block(mode.group_mode(), shader, frame, seed, pixels, counts)
+        }
     }
 }
 
@@ -205,7 +207,7 @@ impl TileContext<'_> {
     fn supersample(&self, p: (u32, u32), n: u32, first: u32, counts: &mut RayCounts) -> Vec3 {
         let (shader, frame, seed) = (&self.shader, &self.frame, self.seed);
         match self.mode.group_mode() {
-            Mode::Scalar => supersample(shader, frame, seed, p, n, first, counts),
+            Mode::Scalar | Mode::Stream => supersample(shader, frame, seed, p, n, first, counts),
             Mode::Packet4 => supersample_packet::<W4>(shader, frame, seed, p, n, first, counts),
             Mode::Packet8 => supersample_packet::<W8>(shader, frame, seed, p, n, first, counts),
             Mode::Packet16 | Mode::Tile64 => {

@@ -31,6 +31,24 @@ pub fn shared_scenes() -> PathBuf {
     dir
 }
 
+/// The tutorial scene files of scenes/ (all seven or more), sorted. Panics, naming the
+/// folder, when they are missing.
+pub fn shipped_scenes() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut paths: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|e| e.expect("directory entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    paths.sort();
+    assert!(
+        paths.len() >= 7,
+        "expected the tutorial scenes in {}",
+        dir.display()
+    );
+    paths
+}
+
 /// The geometry (positions and fan-triangulated faces, in RAYS.md order) and camera of
 /// benchmark scene `name` from cameras.toml.
 pub fn shared_scene(name: &str) -> (Geometry, Camera) {

@@ -1,5 +1,5 @@
 //! SAH kd-tree: build (binned SAH for large nodes, Wald & Havran 2006's sweep below;
-//! the sweep alone as the reference), scalar and packet traversal.
+//! the sweep alone as the reference), scalar, packet and stream traversal.
 //!
 //! Layout: `nodes` is one contiguous array of 8-byte [`node::KdNode`]s, children in
 //! pairs; a leaf holds its `[first, count]`, a contiguous run of `prim_indices`
@@ -16,6 +16,7 @@ pub mod node;
 pub mod stats;
 pub mod traverse;
 pub mod traverse_packet;
+pub mod traverse_stream;
 pub mod traverse_tile;
 
 use super::Prims;

@@ -1,0 +1,297 @@
+//! The stream queries against the scalar path, ray by ray and bit for bit: each ray of
+//! a stream given to `intersect_stream` gets exactly the hit `intersect` returns for it
+//! (primitive, `t`, `u`, `v` as bits; a miss as `Hit::MISS`), and each ray given to
+//! `occluded_stream` gets `occluded`'s answer, in input order, whatever order the
+//! stream kernel works in.
+//!
+//! Inputs: the standard ray sets (primary, shadow, diffuse) of every scene in scenes/
+//! and of the benchmark scenes of ../shared/scenes, the generated stress meshes with
+//! random and adversarial rays, and batches built to break a stream kernel: empty, one
+//! ray, lengths that are not a multiple of any batch width, unusable rays (NaN or
+//! infinite components, zero direction, `t_min > t_max`) mixed among good ones, rays
+//! starting exactly on surfaces, and shadow rays cut just before, at and after their
+//! hit. Every batch is also traced reversed and cut into uneven pieces.
+
+mod common;
+
+use common::{
+    adversarial_rays, camera_rays, hit_bits, looking_at, mixed_primitives, random_rays,
+    shared_scene,
+};
+use glam::Vec3;
+use raypack::accel::Accel;
+use raypack::accel::brute::BruteForce;
+use raypack::accel::kdtree::KdTree;
+use raypack::ray::{Hit, Ray};
+use raypack::rayset::standard::standard_sets;
+use raypack::scene::generate::{self, Rng};
+use raypack::scene::{Camera, Geometry, View};
+
+/// A hit that is no answer, written into the output first so a ray the stream kernel
+/// forgets shows up.
+const POISON: Hit = Hit {
+    t: -7.0,
+    u: 7.0,
+    v: 7.0,
+    prim: 7,
+};
+
+/// The stream answers of `rays`, in one call.
+fn stream_answers<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> (Vec<Hit>, Vec<bool>) {
+    let mut hits = vec![POISON; rays.len()];
+    a.intersect_stream(rays, &mut hits);
+    // Alternating garbage, so neither a forgotten `true` nor a forgotten `false` passes.
+    let mut occluded: Vec<bool> = (0..rays.len()).map(|i| i % 2 == 0).collect();
+    a.occluded_stream(rays, &mut occluded);
+    (hits, occluded)
+}
+
+/// Asserts both stream queries equal the scalar ones on `rays` traced as one stream,
+/// reversed, and in uneven pieces. Returns the number of closest hits.
+fn assert_stream_matches<A: Accel + ?Sized>(a: &A, rays: &[Ray], what: &str) -> usize {
+    let want_hits: Vec<_> = rays
+        .iter()
+        .map(|r| hit_bits(Some(a.intersect(r).unwrap_or(Hit::MISS))))
+        .collect();
+    let want_occluded: Vec<bool> = rays.iter().map(|r| a.occluded(r)).collect();
+    let check = |rays: &[Ray], want_h: &[Option<(u32, u32, u32, u32)>], want_o: &[bool], how| {
+        let (hits, occluded) = stream_answers(a, rays);
+        for (i, r) in rays.iter().enumerate() {
+            assert_eq!(
+                hit_bits(Some(hits[i])),
+                want_h[i],
+                "{what} ({how}): closest hit of ray {i} {r:?}"
+            );
+            assert_eq!(
+                occluded[i], want_o[i],
+                "{what} ({how}): any hit of ray {i} {r:?}"
+            );
+        }
+    };
+    check(rays, &want_hits, &want_occluded, "one stream");
+    let rev = |v: &[Ray]| v.iter().rev().copied().collect::<Vec<_>>();
+    let (mut wh, mut wo) = (want_hits.clone(), want_occluded.clone());
+    wh.reverse();
+    wo.reverse();
+    check(&rev(rays), &wh, &wo, "reversed");
+    let mut start = 0;
+    for len in [1usize, 2, 3, 5, 7, 9, 13, 17, 31, 33, 100].iter().cycle() {
+        if start >= rays.len() {
+            break;
+        }
+        let end = (start + len).min(rays.len());
+        check(
+            &rays[start..end],
+            &want_hits[start..end],
+            &want_occluded[start..end],
+            "pieces",
+        );
+        start = end;
+    }
+    want_hits
+        .iter()
+        .filter(|h| h.is_some_and(|h| h.0 != Hit::MISS.prim))
+        .count()
+}
+
+/// Rays from points exactly on triangles (barycentric interior points and corners), in
+/// random directions with `t_min = 0`, and the same with `t_min` a little above 0.
+fn rays_from_surfaces(g: &Geometry, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    (0..count)
+        .map(|i| {
+            let [p, q, r] = g.triangle(rng.below(g.triangles.len() as u32));
+            let org = if i % 4 == 0 {
+                p
+            } else {
+                let (a, b) = (rng.range(0.0, 1.0), rng.range(0.0, 1.0));
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                p + (q - p) * a + (r - p) * b
+            };
+            let t_min = if i % 3 == 0 { 1e-4 } else { 0.0 };
+            Ray::new(org, rng.unit_vector(), t_min, f32::INFINITY)
+        })
+        .collect()
+}
+
+/// Rays no intersector may hit: NaN and infinite components, zero and subnormal
+/// directions, `t_min > t_max`, NaN bounds.
+fn unusable_rays() -> Vec<Ray> {
+    let (o, d) = (Vec3::new(0.5, 0.5, -3.0), Vec3::Z);
+    vec![
+        Ray::new(Vec3::new(f32::NAN, 0.5, -3.0), d, 0.0, f32::INFINITY),
+        Ray::new(o, Vec3::new(0.0, f32::NAN, 1.0), 0.0, f32::INFINITY),
+        Ray::new(o, Vec3::new(0.0, 0.0, f32::INFINITY), 0.0, f32::INFINITY),
+        Ray::new(
+            Vec3::new(f32::NEG_INFINITY, 0.5, 0.5),
+            Vec3::X,
+            0.0,
+            f32::INFINITY,
+        ),
+        Ray::new(o, Vec3::ZERO, 0.0, f32::INFINITY),
+        Ray::new(o, -Vec3::ZERO, 0.0, f32::INFINITY),
+        Ray::new(o, Vec3::splat(1e-40), 0.0, f32::INFINITY),
+        Ray::new(o, d, 5.0, 1.0),
+        Ray::new(o, d, f32::NAN, f32::INFINITY),
+        Ray::new(o, d, 0.0, f32::NAN),
+        Ray::new(o, d, f32::INFINITY, f32::INFINITY),
+    ]
+}
+
+/// Shadow rays along camera rays that hit, ending just before, at and just after the
+/// hit, and starting at it.
+fn cut_rays<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> Vec<Ray> {
+    let mut out = Vec::new();
+    for r in rays {
+        if let Some(h) = a.intersect(r) {
+            for t_max in [h.t.next_down(), h.t, h.t.next_up()] {
+                out.push(Ray { t_max, ..*r });
+            }
+            out.push(Ray::new(r.at(h.t), r.dir, 0.0, f32::INFINITY));
+        }
+    }
+    out
+}
+
+/// Good rays with the unusable ones mixed in every few places.
+fn mixed_in(good: &[Ray]) -> Vec<Ray> {
+    let bad = unusable_rays();
+    let mut out = Vec::new();
+    for (i, r) in good.iter().enumerate() {
+        if i % 5 == 2 {
+            out.push(bad[(i / 5) % bad.len()]);
+        }
+        out.push(*r);
+    }
+    out.extend(&bad);
+    out
+}
+
+/// Every kind of batch on one geometry, through the kd-tree and through brute force.
+fn check_geometry(g: &Geometry, camera: &Camera, seed: u64, what: &str) {
+    let tree = KdTree::build(g);
+    let brute = BruteForce::new(g);
+    let b = g.bounds();
+    let camera_set = camera_rays(camera, 64, 48, 1);
+    let mut rays = camera_set.clone();
+    rays.extend(random_rays(b.min, b.max, 1_500, seed));
+    rays.extend(adversarial_rays(&tree, g, 1_000, seed + 1));
+    if !g.triangles.is_empty() {
+        rays.extend(rays_from_surfaces(g, 500, seed + 2));
+    }
+    rays.extend(cut_rays(&tree, &camera_set[..400]));
+    let rays = mixed_in(&rays);
+    let hits = assert_stream_matches(&tree, &rays, &format!("{what}, kd-tree"));
+    assert!(
+        hits > rays.len() / 10,
+        "{what}: only {hits} of {} rays hit",
+        rays.len()
+    );
+    assert_stream_matches(&brute, &rays[..2_000], &format!("{what}, brute force"));
+}
+
+/// The standard sets of a scene at `width x height`: every ray of each set.
+fn check_standard_sets(g: &Geometry, camera: &Camera, width: u32, height: u32, what: &str) {
+    let tree = KdTree::build(g);
+    let sets = standard_sets(&tree, g, &View::from(camera), width, height, None)
+        .unwrap_or_else(|e| panic!("{what}: standard sets: {e}"));
+    for (name, set) in [
+        ("primary", &sets.primary),
+        ("shadow", &sets.shadow),
+        ("diffuse", &sets.diffuse),
+    ] {
+        assert!(!set.rays.is_empty(), "{what}: empty {name} set");
+        assert_stream_matches(&tree, &set.rays, &format!("{what}, {name}"));
+    }
+}
+
+#[test]
+fn empty_and_single_ray_batches() {
+    let g = generate::random_soup(200, 0.2, 5);
+    let tree = KdTree::build(&g);
+    let (hits, occluded) = stream_answers(&tree, &[]);
+    assert!(hits.is_empty() && occluded.is_empty());
+    let camera = looking_at(&g, Vec3::new(0.2, 0.3, -1.0));
+    let rays = camera_rays(&camera, 16, 16, 1);
+    let mut hit_one = false;
+    for r in rays.iter().chain(&unusable_rays()) {
+        assert_stream_matches(&tree, std::slice::from_ref(r), "one ray");
+        hit_one |= tree.intersect(r).is_some();
+    }
+    assert!(hit_one, "no camera ray hits the soup");
+    // A stream of unusable rays only.
+    let bad = unusable_rays();
+    let (hits, occluded) = stream_answers(&tree, &bad);
+    assert!(
+        hits.iter()
+            .all(|h| hit_bits(Some(*h)) == hit_bits(Some(Hit::MISS)))
+    );
+    assert!(occluded.iter().all(|&o| !o));
+}
+
+#[test]
+fn stress_meshes() {
+    let soup = generate::random_soup(3_000, 0.1, 3);
+    check_geometry(
+        &soup,
+        &looking_at(&soup, Vec3::new(0.3, 0.4, -1.0)),
+        10,
+        "soup",
+    );
+    let sphere = generate::tessellated_sphere(Vec3::new(1.0, 2.0, 3.0), 2.0, 48, 64);
+    check_geometry(
+        &sphere,
+        &looking_at(&sphere, Vec3::new(0.0, 0.2, -1.0)),
+        20,
+        "sphere",
+    );
+    let grid = generate::axis_aligned_grid(6);
+    check_geometry(
+        &grid,
+        &looking_at(&grid, Vec3::new(0.7, 0.5, -1.0)),
+        30,
+        "grid",
+    );
+    let closed = generate::closed_box(8);
+    check_geometry(
+        &closed,
+        &looking_at(&closed, Vec3::new(0.1, 0.1, -0.2)),
+        40,
+        "closed box",
+    );
+    let mixed = mixed_primitives();
+    check_geometry(
+        &mixed,
+        &looking_at(&mixed, Vec3::new(0.2, 0.5, -1.0)),
+        50,
+        "mixed primitives",
+    );
+}
+
+#[test]
+fn every_shipped_scene_standard_sets() {
+    let paths = common::shipped_scenes();
+    for path in &paths {
+        let scene =
+            raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        check_standard_sets(
+            &scene.geometry,
+            &scene.camera,
+            96,
+            64,
+            &path.display().to_string(),
+        );
+    }
+}
+
+#[test]
+fn shared_scenes_standard_sets() {
+    for name in ["cornell_box", "bunny", "conference", "sponza"] {
+        let (g, camera) = shared_scene(name);
+        check_standard_sets(&g, &camera, 160, 128, name);
+    }
+}
