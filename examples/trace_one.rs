@@ -1,12 +1,12 @@
-//! raypack as a library: load an OBJ mesh, build the kd-tree, trace one ray and one
-//! packet, and print the hits.
+//! raypack as a library: load an OBJ mesh, build the kd-tree, trace one ray, one packet
+//! and a stream, and print the hits.
 //!
 //!     cargo run --release --example trace_one ../shared/scenes/bunny/bunny.obj
 
 use glam::Vec3;
 use raypack::accel::kdtree::KdTree;
 use raypack::accel::{Accel, RayPacket};
-use raypack::ray::Ray;
+use raypack::ray::{Hit, Ray};
 use raypack::scene::{Geometry, obj};
 use raypack::simd::{Simd, W8};
 
@@ -51,5 +51,25 @@ fn main() -> anyhow::Result<()> {
             println!("lane {i}: miss");
         }
     }
+
+    // A stream of unrelated rays (Embree's rtcIntersect1M): many rays in flight at once,
+    // answers in input order, each equal to the single ray's.
+    let stream: Vec<Ray> = (0..1000)
+        .map(|i| {
+            let a = i as f32 * 2.399_963; // golden angle: directions spread evenly
+            let d = Vec3::new(a.cos(), (i as f32 / 500.0) - 1.0, a.sin()).normalize();
+            Ray::new(centre, d, 0.0, f32::INFINITY)
+        })
+        .collect();
+    let mut hits = vec![Hit::MISS; stream.len()];
+    tree.intersect_stream(&stream, &mut hits);
+    let found = hits.iter().filter(|h| h.is_hit()).count();
+    for (ray, hit) in stream.iter().zip(&hits) {
+        assert_eq!(Some(*hit).filter(|h| h.is_hit()), tree.intersect(ray));
+    }
+    println!(
+        "stream: {found} of {} rays from the centre hit",
+        stream.len()
+    );
     Ok(())
 }
