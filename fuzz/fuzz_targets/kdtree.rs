@@ -9,12 +9,13 @@
 use arbitrary::Arbitrary;
 use glam::Vec3;
 use libfuzzer_sys::fuzz_target;
-use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::KdTree;
 use raypack::accel::packet::RayPacket;
+use raypack::accel::{Accel, PacketWidth};
 use raypack::ray::{Hit, Ray};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
+use raypack::simd::{W4, W8, W16};
 
 #[derive(Arbitrary, Debug)]
 struct Input {
@@ -28,7 +29,10 @@ struct Input {
 fn v(a: [f32; 3], snap: bool) -> Vec3 {
     let p = Vec3::from(a);
     if snap && p.is_finite() {
-        (p * 4.0).round().clamp(Vec3::splat(-64.0), Vec3::splat(64.0)) * 0.25
+        (p * 4.0)
+            .round()
+            .clamp(Vec3::splat(-64.0), Vec3::splat(64.0))
+            * 0.25
     } else {
         p
     }
@@ -81,18 +85,51 @@ fuzz_target!(|input: Input| {
         .take(64)
         .map(|&(o, d, t_min, t_max)| Ray::new(v(o, input.snap), v(d, input.snap), t_min, t_max))
         .collect();
-    for chunk in rays.chunks(4) {
-        let packet = RayPacket::from_rays(chunk);
+    check_packets::<W4>(&tree, &brute, &rays);
+    check_packets::<W8>(&tree, &brute, &rays);
+    check_packets::<W16>(&tree, &brute, &rays);
+    let mut hits = vec![Hit::MISS; rays.len()];
+    tree.intersect_stream(&rays, &mut hits);
+    let mut occluded = vec![false; rays.len()];
+    tree.occluded_stream(&rays, &mut occluded);
+    for ((ray, hit), blocked) in rays.iter().zip(&hits).zip(&occluded) {
+        let want = brute.intersect(ray);
+        assert_eq!(
+            key(hit.is_hit().then_some(*hit)),
+            key(want),
+            "stream vs brute: {ray:?}"
+        );
+        assert_eq!(*blocked, brute.occluded(ray), "stream occluded: {ray:?}");
+    }
+});
+
+/// Every ray against brute force, scalar and in packets of `W`'s width.
+fn check_packets<W: PacketWidth>(tree: &KdTree, brute: &BruteForce, rays: &[Ray]) {
+    for chunk in rays.chunks(W::LANES) {
+        let packet = RayPacket::<W>::from_rays(chunk);
         let hits = tree.intersect_packet(&packet);
         let occluded = tree.occluded_packet(&packet);
         for (i, ray) in chunk.iter().enumerate() {
             let want = brute.intersect(ray);
-            assert_eq!(key(tree.intersect(ray)), key(want), "kd-tree vs brute: {ray:?}");
+            assert_eq!(
+                key(tree.intersect(ray)),
+                key(want),
+                "kd-tree vs brute: {ray:?}"
+            );
             let lane = hits.lane(i);
-            assert_eq!(key(lane.is_hit().then_some(lane)), key(want), "packet vs brute: {ray:?}");
+            assert_eq!(
+                key(lane.is_hit().then_some(lane)),
+                key(want),
+                "packet of {} vs brute: {ray:?}",
+                W::LANES
+            );
             let blocked = brute.occluded(ray);
             assert_eq!(tree.occluded(ray), blocked, "occluded: {ray:?}");
-            assert_eq!(occluded & (1 << i) != 0, blocked, "packet occluded: {ray:?}");
+            assert_eq!(
+                occluded & (1 << i) != 0,
+                blocked,
+                "packet occluded: {ray:?}"
+            );
         }
     }
-});
+}
