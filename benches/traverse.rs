@@ -13,9 +13,10 @@
 //! through `black_box`. Throughput is in rays, so reports read in rays/s.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
+use raypack::rayset::standard;
 use raypack::rayset::trace::{Query, checksum_chunk};
-use raypack::rayset::{Mode, standard};
 use raypack::scene::catalog;
 use std::hint::black_box;
 

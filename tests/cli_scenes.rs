@@ -153,6 +153,11 @@ fn unknown_names_and_unusable_cameras_are_bad_input() {
         stderr.contains("sponzza") && stderr.contains("cornell_box"),
         "{stderr}"
     );
+    // Procedural scenes have no materials to render: bench, trace, rays and info take them.
+    let out = raypack(&["render", "spd:balls:2", "-o", s(&png)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("spd: scenes are for bench"), "{stderr}");
     // Eye on the target: no view direction.
     let out = raypack(&[
         "render",

@@ -5,8 +5,8 @@
 mod common;
 
 use glam::Vec3;
+use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
-use raypack::render::Mode;
 use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};

@@ -2,7 +2,7 @@
 //! prints, for the builder asked for, and agrees with the library's own tree.
 
 use raypack::accel::kdtree::{BuildParams, BuilderKind, KdTree};
-use raypack::rayset::scenes;
+use raypack::scene::catalog as scenes;
 use std::process::{Command, Output};
 
 const SCENE: &str = "spd:tetra:4";

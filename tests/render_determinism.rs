@@ -3,10 +3,11 @@
 //! signature differs from a neighbour's; ray counts add up.
 
 use glam::{Vec2, Vec3};
+use raypack::accel::Mode;
 use raypack::accel::brute::BruteForce;
 use raypack::render::shade::{RayCounts, Shader};
 use raypack::render::tiles::{centre_sample, supersample, tiles};
-use raypack::render::{Film, Mode, Rendered, render};
+use raypack::render::{Film, Rendered, render};
 use raypack::scene::{
     Aabb, AntiAlias, Camera, Geometry, Light, Material, Plane, RenderSettings, Scene, Sphere,
     Texture,

@@ -12,9 +12,10 @@
 
 mod common;
 
+use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
 use raypack::render::shade::{Batching, PacketCounts};
-use raypack::render::{Mode, RayCounts, Rendered, render};
+use raypack::render::{RayCounts, Rendered, render};
 use raypack::scene::Scene;
 use std::path::Path;
 

@@ -1,7 +1,8 @@
 //! Every scene in scenes/ loads, and the committed mesh is the generator's output.
 
+use raypack::accel::Mode;
 use raypack::accel::brute::BruteForce;
-use raypack::render::{Mode, render};
+use raypack::render::render;
 use raypack::scene::{AntiAlias, Light, file, generate};
 use std::path::{Path, PathBuf};
 

@@ -4,13 +4,14 @@
 //! importance sampling. Scenes are built in code and traced through brute force.
 
 use glam::{Vec2, Vec3};
+use raypack::accel::Mode;
 use raypack::accel::brute::BruteForce;
 use raypack::ray::{NO_HIT, Ray};
+use raypack::render::render;
 use raypack::render::sample::{Pcg32, pixel_rng};
 use raypack::render::shade::{
     RayCounts, Shader, absorption_coefficient, reflect, refract, transmission,
 };
-use raypack::render::{Mode, render};
 use raypack::scene::{
     Aabb, AntiAlias, Camera, Geometry, Light, Material, Plane, RenderSettings, Scene, Sphere,
     Texture,

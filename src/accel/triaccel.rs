@@ -50,7 +50,7 @@
 //! The cost in Mrays/s is recorded in perf/README.md, section "Watertightness".
 
 // The packet twin names the axes through this module too.
-pub use super::axis::MOD3;
+use super::axis::MOD3;
 use super::watertight;
 use crate::ray::Ray;
 use crate::scene::Geometry;

@@ -10,8 +10,9 @@
 //! ([`super::triaccel::exact_rule`]), which also gives their `t`, `u`, `v`. Inactive lanes are masked out of the result; their
 //! values (NaN included) reach no other lane because every operation is lane-wise.
 
+use super::axis::MOD3;
 use super::packet::{LaneHits, RayPacket};
-use super::triaccel::{C1, C2, MOD3, T_SLACK, TriAccel, exact_rule};
+use super::triaccel::{C1, C2, T_SLACK, TriAccel, exact_rule};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
 use glam::Vec3;
 

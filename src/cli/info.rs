@@ -13,7 +13,8 @@
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
-use raypack::rayset::{scenes, standard};
+use raypack::rayset::standard;
+use raypack::scene::catalog as scenes;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;

@@ -22,14 +22,15 @@ use anyhow::Context;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
+use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
-use raypack::rayset::View;
-use raypack::rayset::scenes;
 use raypack::render::film::{ImageFormat, WriteOptions};
 use raypack::render::gi::{GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
-use raypack::render::{Film, Mode, RayCounts, render, tiles};
+use raypack::render::{Film, RayCounts, render, tiles};
+use raypack::scene::View;
+use raypack::scene::catalog::{self, SceneArg};
 use raypack::scene::{AntiAlias, Camera, Light, Scene, Warning};
 use serde::Serialize;
 use std::collections::{BTreeMap, BinaryHeap};
@@ -176,36 +177,26 @@ enum Source {
     Mesh,
 }
 
-/// Loads SCENE (see the module docs).
+/// Loads SCENE (see the module docs): the argument is read as every command reads it
+/// ([`catalog::resolve`]).
 fn load(arg: &str) -> anyhow::Result<(Scene, Vec<Warning>, Source)> {
-    let path = Path::new(arg);
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("toml") => {
-            let (scene, warnings) = raypack::scene::file::load_with_warnings(path)?;
+    match catalog::resolve(arg)? {
+        SceneArg::Toml(path) => {
+            let (scene, warnings) = raypack::scene::file::load_with_warnings(&path)?;
             Ok((scene, warnings, Source::File))
         }
-        Some("obj") => {
-            let mesh_camera = scenes::shared_view_of(path).map(|v| Camera::from(&v));
-            let (mut scene, warnings) =
-                Scene::from_obj(path, mesh_camera.clone().unwrap_or_default())?;
-            if mesh_camera.is_none() {
-                scene.camera = Camera::from(&scenes::overview(&scene.geometry));
+        SceneArg::Obj { path, view } => {
+            let camera = view.as_ref().map(Camera::from).unwrap_or_default();
+            let (mut scene, warnings) = Scene::from_obj(&path, camera)?;
+            if view.is_none() {
+                scene.camera = Camera::from(&catalog::overview(&scene.geometry));
             }
             Ok((scene, warnings, Source::Mesh))
         }
-        _ if path.is_file() => Err(BadInput(format!(
-            "{arg}: not a scene: expected a .toml scene file, an .obj mesh, or a scene name"
+        SceneArg::Spd(_) => Err(BadInput(format!(
+            "{arg}: render takes a scene file, an OBJ mesh or a scene name; spd: scenes are for bench, trace, rays and info"
         ))
         .into()),
-        _ => {
-            let (entry, obj) = scenes::shared_scene(arg)?;
-            let (scene, warnings) = Scene::from_obj(&obj, Camera::from(&entry.view()))?;
-            Ok((scene, warnings, Source::Mesh))
-        }
     }
 }
 

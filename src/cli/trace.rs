@@ -2,7 +2,8 @@
 //! answers can be compared ray by ray with another tracer's.
 
 use super::{bench::build_accel, load_scene};
-use raypack::rayset::{self, Checksum, Mode};
+use raypack::accel::Mode;
+use raypack::rayset::{self, Checksum};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

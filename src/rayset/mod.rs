@@ -9,15 +9,10 @@ pub mod format;
 pub mod standard;
 pub mod trace;
 
-/// The f64 camera the ray sets are made from; it lives with the camera in `scene`.
-pub use crate::scene::View;
-/// Scene lookup by name moved to [`crate::scene::catalog`]; this path stays for the
-/// commands that still import it from here.
-pub use crate::scene::catalog as scenes;
 pub use format::{
     HIT_RECORD_BYTES, HITS_HEADER_BYTES, HITS_MAGIC, RAY_RECORD_BYTES, RAYS_HEADER_BYTES,
     RAYS_MAGIC, RaySet, RaySetError, TILE, hits_bytes, packet_pixel, parse_hits, parse_rays,
     pixel_packet_index, rays_bytes, read_hits, read_rays, write_hits, write_rays,
 };
 pub use standard::{LightSource, StandardSets};
-pub use trace::{Checksum, Mode};
+pub use trace::Checksum;

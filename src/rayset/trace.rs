@@ -10,7 +10,7 @@
 //! and sum of primitive ids, as the Embree harness folds its answers), so the work
 //! cannot be optimised away and two modes or two tracers can be compared.
 
-pub use crate::accel::Mode;
+use crate::accel::Mode;
 use crate::accel::kdtree::traverse_tile::TILE_RAYS;
 use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket};
 use crate::ray::{Hit, Ray};

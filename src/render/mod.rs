@@ -21,4 +21,4 @@ pub mod tiles;
 
 pub use film::{Film, FilmError};
 pub use shade::{HitSignature, RayCounts, Shader};
-pub use tiles::{Mode, Rendered, render};
+pub use tiles::{Rendered, render};

@@ -18,7 +18,7 @@ use super::sample::{pixel_rng, sub_pixel_sample};
 use super::shade::{HitSignature, RayCounts, Shader};
 use super::shade_packet::{shade_block_packet, supersample_packet};
 use crate::accel::Accel;
-pub use crate::accel::Mode;
+use crate::accel::Mode;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
 use crate::simd::{MAX_LANES, Simd, W4, W8, W16, block_pixel};
 use glam::Vec3;

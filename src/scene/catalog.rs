@@ -225,32 +225,69 @@ pub fn shared_view_of(path: &Path) -> Option<View> {
         .map(|e| e.view())
 }
 
-/// Loads the scene named by `arg` (see the module docs).
-pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
-    let start = Instant::now();
+/// What a scene argument names, before anything is read: the one reading of the
+/// argument that `bench`, `trace`, `rays`, `info` and `render` share.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneArg {
+    /// `spd:NAME[:SIZE]`, the text after `spd:`.
+    Spd(String),
+    /// A TOML scene file.
+    Toml(PathBuf),
+    /// An OBJ mesh, by path or by its cameras.toml name, with the camera cameras.toml
+    /// gives it (`None`: frame its bounds, [`overview`]).
+    Obj {
+        /// The mesh file.
+        path: PathBuf,
+        /// Its standard camera, if it is one of the shared scenes.
+        view: Option<View>,
+    },
+}
+
+/// Reads `arg` as the module docs say: `spd:` spec, `.toml` or `.obj` path (any case),
+/// or a name of cameras.toml. Any other existing file is refused.
+pub fn resolve(arg: &str) -> Result<SceneArg, BenchSceneError> {
     let path = Path::new(arg);
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let (geometry, view, warnings) = if let Some(spec) = arg.strip_prefix("spd:") {
-        let s = spd::generate_spec(spec)?;
-        (s.geometry, s.view, Vec::new())
+    if let Some(spec) = arg.strip_prefix("spd:") {
+        Ok(SceneArg::Spd(spec.to_string()))
     } else if ext.as_deref() == Some("obj") {
-        let (g, warnings) = load_obj(path)?;
-        let view = shared_view_of(path).unwrap_or_else(|| overview(&g));
-        (g, view, warnings)
+        Ok(SceneArg::Obj {
+            path: path.to_path_buf(),
+            view: shared_view_of(path),
+        })
     } else if ext.as_deref() == Some("toml") {
-        load_toml(path)?
+        Ok(SceneArg::Toml(path.to_path_buf()))
     } else if path.is_file() {
-        return Err(BenchSceneError::Load {
+        Err(BenchSceneError::Load {
             path: path.to_path_buf(),
             message: "not a scene: expected a .toml scene or an .obj mesh".into(),
-        });
+        })
     } else {
         let (entry, obj) = shared_scene(arg)?;
-        let (g, warnings) = load_obj(&obj)?;
-        (g, entry.view(), warnings)
+        Ok(SceneArg::Obj {
+            path: obj,
+            view: Some(entry.view()),
+        })
+    }
+}
+
+/// Loads the scene named by `arg` (see the module docs).
+pub fn load(arg: &str) -> Result<BenchScene, BenchSceneError> {
+    let start = Instant::now();
+    let (geometry, view, warnings) = match resolve(arg)? {
+        SceneArg::Spd(spec) => {
+            let s = spd::generate_spec(&spec)?;
+            (s.geometry, s.view, Vec::new())
+        }
+        SceneArg::Toml(path) => load_toml(&path)?,
+        SceneArg::Obj { path, view } => {
+            let (g, warnings) = load_obj(&path)?;
+            let view = view.unwrap_or_else(|| overview(&g));
+            (g, view, warnings)
+        }
     };
     Ok(BenchScene {
         name: arg.to_string(),
