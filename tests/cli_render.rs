@@ -99,6 +99,14 @@ fn bad_arguments_exit_with_2_and_write_nothing() {
         (vec!["--eye", "1,2"], "--eye"),
         (vec!["--up", "0,nan,0"], "--up"),
         (vec!["--half"], "--half"),
+        (
+            vec!["--max-bounces", "3"],
+            "--max-bounces applies to --integrator path",
+        ),
+        (
+            vec!["--integrator", "photon", "--max-bounces", "3"],
+            "--max-bounces applies to --integrator path",
+        ),
         (vec!["--seed", "minus-one"], "--seed"),
     ];
     for (extra, needle) in cases {

@@ -230,14 +230,17 @@ fn gi_images_do_not_depend_on_the_thread_count() {
             bits(&scalar.film),
             "packets, photon: {photon}"
         );
-        assert_eq!(scalar.counts.camera_packets, 0);
+        assert_eq!(
+            (scalar.counts.camera_packets, scalar.counts.shadow_packets),
+            (0, 0)
+        );
         assert_eq!(
             (one.counts.camera, one.counts.total()),
             (scalar.counts.camera, scalar.counts.total())
         );
         assert!(one.counts.camera_packets > 0);
         // Every packet width gives the scalar image, bit for bit.
-        for mode in [Mode::Packet4, Mode::Packet8, Mode::Packet16, Mode::Tile64] {
+        for mode in Mode::ALL.into_iter().filter(|&m| m != Mode::Scalar) {
             let packed = render(3, photon, mode);
             assert_eq!(
                 bits(&packed.film),
@@ -247,6 +250,47 @@ fn gi_images_do_not_depend_on_the_thread_count() {
         }
         assert!(one.film.pixels.iter().any(|p| p.max_element() > 0.0));
     }
+}
+
+/// The path tracer's wavefront (bounces and shadow rays as streams, the camera vertex's
+/// shadow rays toward point lights as packets) gives the image of paths traced one by
+/// one, bit for bit, with the same ray counts, on every tutorial scene: point and area
+/// lights, mirrors, glass with Beer's law, textures, spheres, planes and boxes.
+#[test]
+fn path_tracer_wavefront_matches_paths_one_by_one_on_every_scene() {
+    for path in common::shipped_scenes() {
+        let mut scene =
+            raypack::scene::file::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let s = &mut scene.settings;
+        let aspect = s.height as f32 / s.width as f32;
+        s.width = 67;
+        s.height = (67.0 * aspect).round() as u32;
+        let accel = KdTree::build(&scene.geometry);
+        let render = |mode: Mode, max_bounces: Option<u32>| {
+            let gi = GiScene::new(&scene, &accel, scene.settings.background, max_bounces);
+            render_gi(&scene, &PathTracer { scene: gi }, 3, mode, &|| ())
+        };
+        for max_bounces in [None, Some(2)] {
+            let scalar = render(Mode::Scalar, max_bounces);
+            assert!(scalar.counts.shadow > 0 && scalar.counts.bounce > 0);
+            for mode in Mode::ALL.into_iter().filter(|&m| m != Mode::Scalar) {
+                let other = render(mode, max_bounces);
+                let name = format!("{} ({mode}, max bounces {max_bounces:?})", path.display());
+                assert_eq!(film_bits(&other.film), film_bits(&scalar.film), "{name}");
+                let mut counts = other.counts;
+                counts.camera_packets = 0;
+                counts.shadow_packets = 0;
+                assert_eq!(counts, scalar.counts, "{name}");
+            }
+        }
+    }
+}
+
+fn film_bits(f: &raypack::render::Film) -> Vec<[u32; 3]> {
+    f.pixels
+        .iter()
+        .map(|p| p.to_array().map(f32::to_bits))
+        .collect()
 }
 
 /// The GI scene files of scenes/gi load from ../shared/scenes: the Cornell box lit by its

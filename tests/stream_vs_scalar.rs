@@ -25,7 +25,7 @@ use raypack::accel::kdtree::KdTree;
 use raypack::ray::{Hit, Ray};
 use raypack::rayset::standard::standard_sets;
 use raypack::scene::generate::{self, Rng};
-use raypack::scene::{Camera, Geometry, View};
+use raypack::scene::{Aabb, Camera, Geometry, View};
 
 /// A hit that is no answer, written into the output first so a ray the stream kernel
 /// forgets shows up.
@@ -35,6 +35,35 @@ const POISON: Hit = Hit {
     v: 7.0,
     prim: 7,
 };
+
+/// The kd-tree with its stream queries always on the interleaved kernel: the tree's own
+/// stream queries walk ray by ray when the tree is small, and most test trees are.
+struct Interleaved<'a>(&'a KdTree);
+
+impl Accel for Interleaved<'_> {
+    fn bounds(&self) -> Aabb {
+        self.0.bounds()
+    }
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.0.intersect(ray)
+    }
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.0.occluded(ray)
+    }
+    fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
+        self.0.intersect_interleaved(rays, hits)
+    }
+    fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+        self.0.occluded_interleaved(rays, occluded)
+    }
+}
+
+/// Asserts the tree's stream queries, and its interleaved kernel, equal the scalar
+/// ones on `rays` ([`assert_stream_matches`]). Returns the number of closest hits.
+fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
+    assert_stream_matches(&Interleaved(tree), rays, &format!("{what}, interleaved"));
+    assert_stream_matches(tree, rays, what)
+}
 
 /// The stream answers of `rays`, in one call.
 fn stream_answers<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> (Vec<Hit>, Vec<bool>) {
@@ -185,7 +214,7 @@ fn check_geometry(g: &Geometry, camera: &Camera, seed: u64, what: &str) {
     }
     rays.extend(cut_rays(&tree, &camera_set[..400]));
     let rays = mixed_in(&rays);
-    let hits = assert_stream_matches(&tree, &rays, &format!("{what}, kd-tree"));
+    let hits = assert_tree_stream_matches(&tree, &rays, &format!("{what}, kd-tree"));
     assert!(
         hits > rays.len() / 10,
         "{what}: only {hits} of {} rays hit",
@@ -205,7 +234,7 @@ fn check_standard_sets(g: &Geometry, camera: &Camera, width: u32, height: u32, w
         ("diffuse", &sets.diffuse),
     ] {
         assert!(!set.rays.is_empty(), "{what}: empty {name} set");
-        assert_stream_matches(&tree, &set.rays, &format!("{what}, {name}"));
+        assert_tree_stream_matches(&tree, &set.rays, &format!("{what}, {name}"));
     }
 }
 
@@ -213,24 +242,30 @@ fn check_standard_sets(g: &Geometry, camera: &Camera, width: u32, height: u32, w
 fn empty_and_single_ray_batches() {
     let g = generate::random_soup(200, 0.2, 5);
     let tree = KdTree::build(&g);
-    let (hits, occluded) = stream_answers(&tree, &[]);
-    assert!(hits.is_empty() && occluded.is_empty());
+    let interleaved = Interleaved(&tree);
+    let both: [&dyn Accel; 2] = [&tree, &interleaved];
+    for a in both {
+        let (hits, occluded) = stream_answers(a, &[]);
+        assert!(hits.is_empty() && occluded.is_empty());
+    }
     let camera = looking_at(&g, Vec3::new(0.2, 0.3, -1.0));
     let rays = camera_rays(&camera, 16, 16, 1);
     let mut hit_one = false;
     for r in rays.iter().chain(&unusable_rays()) {
-        assert_stream_matches(&tree, std::slice::from_ref(r), "one ray");
+        assert_tree_stream_matches(&tree, std::slice::from_ref(r), "one ray");
         hit_one |= tree.intersect(r).is_some();
     }
     assert!(hit_one, "no camera ray hits the soup");
     // A stream of unusable rays only.
     let bad = unusable_rays();
-    let (hits, occluded) = stream_answers(&tree, &bad);
-    assert!(
-        hits.iter()
-            .all(|h| hit_bits(Some(*h)) == hit_bits(Some(Hit::MISS)))
-    );
-    assert!(occluded.iter().all(|&o| !o));
+    for a in both {
+        let (hits, occluded) = stream_answers(a, &bad);
+        assert!(
+            hits.iter()
+                .all(|h| hit_bits(Some(*h)) == hit_bits(Some(Hit::MISS)))
+        );
+        assert!(occluded.iter().all(|&o| !o));
+    }
 }
 
 #[test]

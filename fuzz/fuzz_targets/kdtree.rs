@@ -89,9 +89,10 @@ fuzz_target!(|input: Input| {
     check_packets::<W8>(&tree, &brute, &rays);
     check_packets::<W16>(&tree, &brute, &rays);
     let mut hits = vec![Hit::MISS; rays.len()];
-    tree.intersect_stream(&rays, &mut hits);
+    // The interleaved kernel itself: the stream queries of a tree this small walk ray by ray.
+    tree.intersect_interleaved(&rays, &mut hits);
     let mut occluded = vec![false; rays.len()];
-    tree.occluded_stream(&rays, &mut occluded);
+    tree.occluded_interleaved(&rays, &mut occluded);
     for ((ray, hit), blocked) in rays.iter().zip(&hits).zip(&occluded) {
         let want = brute.intersect(ray);
         assert_eq!(

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
 use raypack::render::film::{ImageFormat, WriteOptions};
-use raypack::render::gi::{GiScene, render_gi};
+use raypack::render::gi::{GiCounts, GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
 use raypack::render::{Film, RayCounts, render, tiles};
@@ -87,7 +87,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = IntegratorArg::Whitted)]
     pub integrator: IntegratorArg,
     /// Path: most scattering events per path (default: Russian roulette
-    /// alone ends paths).
+    /// alone ends paths). Refused with the other integrators.
     #[arg(long)]
     pub max_bounces: Option<u32>,
     /// Photon: photons shot from the emitters.
@@ -291,6 +291,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.half && format != ImageFormat::Exr {
         return Err(BadInput("--half applies to EXR output only".into()).into());
     }
+    if args.max_bounces.is_some() && args.integrator != IntegratorArg::Path {
+        return Err(BadInput(
+            "--max-bounces applies to --integrator path only (photon paths end by Russian \
+             roulette, the Whitted tracer by the scene's depth)"
+                .into(),
+        )
+        .into());
+    }
     let exposure = args.exposure.unwrap_or(0.0);
     if !exposure.is_finite() {
         return Err(BadInput("--exposure must be a finite number".into()).into());
@@ -365,6 +373,25 @@ fn finish(args: &Args, report: &Report, film: &Film, options: &WriteOptions) -> 
     film.write_with(&args.output, options)?;
     println!("wrote      {}", args.output.display());
     Ok(())
+}
+
+/// How a global-illumination render traced its rays in `mode`, for the summary.
+fn routing(integrator: IntegratorArg, mode: Mode, c: &GiCounts) -> String {
+    let path = integrator == IntegratorArg::Path;
+    match mode {
+        Mode::Scalar => "every ray alone (the reference mode)".into(),
+        Mode::Stream if path => "camera, bounce and shadow rays as streams".into(),
+        Mode::Stream => "camera rays as streams; photon, gather and shadow rays alone".into(),
+        _ if path => format!(
+            "camera rays in {} packets, the camera hits' shadow rays toward point lights in {} \
+             packets, bounce and other shadow rays as streams",
+            c.camera_packets, c.shadow_packets
+        ),
+        _ => format!(
+            "camera rays in {} packets; photon, gather and shadow rays alone",
+            c.camera_packets
+        ),
+    }
 }
 
 /// Renders with the path tracer or the photon mapper: any `--spp`, the sky, and a
@@ -457,7 +484,7 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
          render     {render_seconds:.3} s\n\
          rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon\n\
          rays/s     {:.2} M\n\
-         {}",
+         tracing    {}\n",
         args.scene,
         s.width,
         s.height,
@@ -469,14 +496,7 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
         c.gather,
         c.photon,
         c.total() as f64 / render_seconds.max(1e-9) / 1e6,
-        if c.camera_packets > 0 {
-            format!(
-                "packets    camera rays in {} packets; other rays one by one\n",
-                c.camera_packets
-            )
-        } else {
-            String::new()
-        },
+        routing(args.integrator, args.mode, c),
     );
     let rays = BTreeMap::from([
         ("total", c.total()),

@@ -1,6 +1,7 @@
-//! render: rays of one hit point traced together (shadow rays toward a light's samples,
-//! glossy rays): queued, then tested as one packet of the mode's width, or one by one in
-//! scalar mode. Below both shading paths, which share it.
+//! render: rays traced together. Rays of one hit point (shadow rays toward a light's
+//! samples, glossy rays) are queued, then tested as one packet of the mode's width, or
+//! one by one in scalar mode; unrelated rays (the bounces of many paths) go as one
+//! stream. Below the shading paths and the integrators, which share it.
 
 use super::counts::RayCounts;
 use crate::accel::packet::RayPacket;
@@ -23,7 +24,7 @@ pub fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_
 }
 
 /// Occlusion bits of at most one packet of `rays`, traced as a packet at `mode`'s width.
-fn occluded_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> u32 {
+pub fn occluded_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> u32 {
     match mode {
         Mode::Packet8 => accel.occluded_packet(&RayPacket::<W8>::from_rays(rays)),
         Mode::Packet16 => accel.occluded_packet(&RayPacket::<W16>::from_rays(rays)),
@@ -102,4 +103,29 @@ impl ShadowBatch {
 /// rays): the packet width, and 4 in scalar mode, whose batches only order the work.
 pub fn batch_size(mode: Mode) -> usize {
     mode.packet_size().max(4)
+}
+
+/// Closest hits of unrelated rays into `hits` (same length), misses as [`Hit::MISS`]: one
+/// by one in scalar mode (the reference), as one stream ([`Accel::intersect_stream`]) in
+/// every other mode. The answers are the same either way.
+pub fn intersect_unrelated(accel: &dyn Accel, mode: Mode, rays: &[Ray], hits: &mut [Hit]) {
+    if mode == Mode::Scalar {
+        for (r, h) in rays.iter().zip(hits.iter_mut()) {
+            *h = accel.intersect(r).unwrap_or(Hit::MISS);
+        }
+    } else {
+        accel.intersect_stream(rays, hits);
+    }
+}
+
+/// Any-hit answers of unrelated rays into `occluded` (same length), as
+/// [`intersect_unrelated`] traces them.
+pub fn occluded_unrelated(accel: &dyn Accel, mode: Mode, rays: &[Ray], occluded: &mut [bool]) {
+    if mode == Mode::Scalar {
+        for (r, o) in rays.iter().zip(occluded.iter_mut()) {
+            *o = accel.occluded(r);
+        }
+    } else {
+        accel.occluded_stream(rays, occluded);
+    }
 }

@@ -1,12 +1,13 @@
 //! render: the driver of the global-illumination integrators ([`super::path`],
 //! [`super::photon`]): tiles rendered in parallel, `spp` jittered camera samples per
-//! pixel, each estimated by an [`Integrator`] one ray at a time.
+//! pixel. Sample `k` of every pixel of a tile is one batch handed to an [`Integrator`],
+//! which may trace its paths one by one or as a wavefront.
 //!
 //! Invariants: sample `k` of pixel `(x, y)` draws only from [`pixel_rng`]`(seed, x, y, k)`,
 //! so the image is the same for any number of threads and any tile order; ray counts are
 //! summed per tile in tile order.
 
-use super::batch::intersect_rays;
+use super::batch::{intersect_rays, intersect_unrelated};
 use super::bsdf::Bsdf;
 use super::film::Film;
 use super::lights::Lights;
@@ -17,7 +18,6 @@ use crate::accel::Accel;
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::scene::{Material, Scene};
-use crate::simd::MAX_LANES;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -36,6 +36,9 @@ pub struct GiCounts {
     pub photon: u64,
     /// Packets the camera rays were traced in (0 in scalar mode); not in the total.
     pub camera_packets: u64,
+    /// Packets the camera vertex's shadow rays toward point lights were traced in (path
+    /// tracer, packet modes); not in the total.
+    pub shadow_packets: u64,
 }
 
 impl GiCounts {
@@ -52,6 +55,7 @@ impl AddAssign for GiCounts {
         self.gather += o.gather;
         self.photon += o.photon;
         self.camera_packets += o.camera_packets;
+        self.shadow_packets += o.shadow_packets;
     }
 }
 
@@ -69,6 +73,24 @@ pub trait Integrator: Sync {
         rng: &mut Pcg32,
         counts: &mut GiCounts,
     ) -> Vec3;
+
+    /// [`Integrator::radiance_traced`] for many camera rays at once, `rngs[i]` drawn
+    /// for ray `i`, the same values bit for bit; `mode` says how rays traced together
+    /// go (one by one in scalar mode). The default takes the rays one at a time.
+    fn radiance_batch(
+        &self,
+        rays: &[Ray],
+        first: &[Option<Hit>],
+        rngs: &mut [Pcg32],
+        _mode: Mode,
+        counts: &mut GiCounts,
+    ) -> Vec<Vec3> {
+        rays.iter()
+            .zip(first)
+            .zip(rngs)
+            .map(|((ray, &hit), rng)| self.radiance_traced(ray, hit, rng, counts))
+            .collect()
+    }
 
     /// One sample of the radiance along camera ray `ray` (already counted).
     fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
@@ -225,16 +247,38 @@ impl<'a> GiScene<'a> {
         mis: bool,
         counts: &mut GiCounts,
     ) -> Vec3 {
+        match self.direct_query(h, wo, rng, mis) {
+            Some(q) => {
+                counts.shadow += 1;
+                if self.shader.accel.occluded(&q.ray) {
+                    Vec3::ZERO
+                } else {
+                    q.value
+                }
+            }
+            None => Vec3::ZERO,
+        }
+    }
+
+    /// The light sample of [`GiScene::direct`] without its shadow ray traced: the ray,
+    /// and what the sample brings when the ray is unoccluded. `None` when it brings
+    /// nothing whatever the ray meets. Draws three uniforms, as `direct` does, so a
+    /// caller that traces the shadow rays of many paths together takes the same samples.
+    pub fn direct_query(
+        &self,
+        h: &GiHit,
+        wo: Vec3,
+        rng: &mut Pcg32,
+        mis: bool,
+    ) -> Option<ShadowQuery> {
         let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
         if !h.bsdf.has_smooth() {
-            return Vec3::ZERO;
+            return None;
         }
-        let Some(ls) = self.lights.sample(h.p, u) else {
-            return Vec3::ZERO;
-        };
+        let ls = self.lights.sample(h.p, u)?;
         let f = h.bsdf.eval(wo, ls.wi) * ls.wi.dot(h.n).max(0.0);
         if f == Vec3::ZERO || ls.pdf <= 0.0 {
-            return Vec3::ZERO;
+            return None;
         }
         // Aimed from the offset origin at the sampled point itself, stopping just short
         // of it: the emitter's own surface must not count as a blocker.
@@ -242,20 +286,29 @@ impl<'a> GiScene<'a> {
         let to = ls.point - org;
         let len = to.length();
         if !(len > 0.0) {
-            return Vec3::ZERO;
-        }
-        let shadow = Ray::new(org, to / len, 0.0, len * (1.0 - 1e-4));
-        counts.shadow += 1;
-        if self.shader.accel.occluded(&shadow) {
-            return Vec3::ZERO;
+            return None;
         }
         let w = if mis && !ls.delta {
             super::bsdf::power_heuristic(ls.pdf, h.bsdf.pdf(wo, ls.wi))
         } else {
             1.0
         };
-        f * ls.li * (w / ls.pdf)
+        Some(ShadowQuery {
+            ray: Ray::new(org, to / len, 0.0, len * (1.0 - 1e-4)),
+            value: f * ls.li * (w / ls.pdf),
+            point_light: ls.delta,
+        })
     }
+}
+
+/// A light sample's shadow ray and the radiance it brings if nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowQuery {
+    pub ray: Ray,
+    pub value: Vec3,
+    /// The ray ends at a point light: from neighbouring camera hits such rays are
+    /// coherent, and are traced as packets.
+    pub point_light: bool,
 }
 
 /// Russian roulette from the fourth vertex on: a path goes on with probability
@@ -283,7 +336,8 @@ pub struct GiRendered {
 /// Renders `spp` samples per pixel of `scene`'s camera at its settings' size through
 /// `integrator` on the current rayon pool; `progress` is called once per finished tile.
 /// In a packet mode the camera rays of a packet width of neighbouring pixels are traced as
-/// one packet; the hits, and so the image, are those of [`Mode::Scalar`], bit for bit.
+/// one packet, and the integrator sends its other rays as it says
+/// ([`Integrator::radiance_batch`]); the image is that of [`Mode::Scalar`], bit for bit.
 pub fn render_gi(
     scene: &Scene,
     integrator: &dyn Integrator,
@@ -304,45 +358,46 @@ pub fn render_gi(
             let pixels: Vec<(u32, u32)> = (t.y0..t.y0 + t.height)
                 .flat_map(|y| (t.x0..t.x0 + t.width).map(move |x| (x, y)))
                 .collect();
-            let mut out = vec![Vec3::ZERO; pixels.len()];
-            // Groups of a packet width of pixels along the tile's rows; sample k of every
-            // pixel of a group forms one camera packet in a packet mode.
+            // Sample k of every pixel of the tile is one batch: its camera rays go in
+            // groups of a packet width of pixels along the tile's rows (one by one in
+            // scalar mode, as one stream in stream mode), then the integrator takes the
+            // batch on.
             let packet = mode.group_mode();
-            let group_size = packet.packet_size();
-            for (g, group) in pixels.chunks(group_size).enumerate() {
-                let mut sums = [Vec3::ZERO; MAX_LANES];
-                for k in 0..spp {
-                    let mut rngs = Vec::with_capacity(group.len());
-                    let mut rays = Vec::with_capacity(group.len());
-                    for &(x, y) in group {
-                        let mut rng = pixel_rng(seed, x, y, k);
-                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                        rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
-                        rngs.push(rng);
-                    }
-                    let hits: Vec<Option<Hit>> = if packet == Mode::Scalar {
-                        rays.iter().map(|r| accel.intersect(r)).collect()
-                    } else {
+            let n = pixels.len();
+            let mut sums = vec![Vec3::ZERO; n];
+            let mut rays = Vec::with_capacity(n);
+            let mut rngs = Vec::with_capacity(n);
+            let mut hits = vec![Hit::MISS; n];
+            for k in 0..spp {
+                rays.clear();
+                rngs.clear();
+                for &(x, y) in &pixels {
+                    let mut rng = pixel_rng(seed, x, y, k);
+                    let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                    rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
+                    rngs.push(rng);
+                }
+                counts.camera += n as u64;
+                if packet == Mode::Scalar {
+                    intersect_unrelated(accel, mode, &rays, &mut hits);
+                } else {
+                    let size = packet.packet_size();
+                    for (group, out) in rays.chunks(size).zip(hits.chunks_mut(size)) {
                         counts.camera_packets += 1;
-                        let h = intersect_rays(accel, packet, &rays);
-                        h[..rays.len()]
-                            .iter()
-                            .map(|hit| hit.is_hit().then_some(*hit))
-                            .collect()
-                    };
-                    for (i, (ray, rng)) in rays.iter().zip(&mut rngs).enumerate() {
-                        counts.camera += 1;
-                        let l = integrator.radiance_traced(ray, hits[i], rng, &mut counts);
-                        // A NaN or infinite sample would poison the pixel: drop it.
-                        if l.is_finite() {
-                            sums[i] += l;
-                        }
+                        out.copy_from_slice(&intersect_rays(accel, packet, group)[..group.len()]);
                     }
                 }
-                for (i, sum) in sums.iter().take(group.len()).enumerate() {
-                    out[g * group_size + i] = *sum / spp as f32;
+                let first: Vec<Option<Hit>> =
+                    hits.iter().map(|h| h.is_hit().then_some(*h)).collect();
+                let l = integrator.radiance_batch(&rays, &first, &mut rngs, mode, &mut counts);
+                for (sum, l) in sums.iter_mut().zip(l) {
+                    // A NaN or infinite sample would poison the pixel: drop it.
+                    if l.is_finite() {
+                        *sum += l;
+                    }
                 }
             }
+            let out: Vec<Vec3> = sums.iter().map(|s| *s / spp as f32).collect();
             progress();
             (out, counts)
         })

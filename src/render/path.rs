@@ -12,15 +12,160 @@
 //!
 //! Random numbers per vertex, in order: three for the light sample, three for the BSDF
 //! sample, one for Russian roulette.
+//!
+//! Paths are traced one vertex at a time (`PathTracer::advance`), either alone
+//! ([`Integrator::radiance_traced`], the reference) or as a wavefront of many paths
+//! ([`Integrator::radiance_batch`]): each generation's bounce rays go as one stream, its
+//! shadow rays as another, and at the camera's vertex the shadow rays toward point lights
+//! from neighbouring pixels as packets. A path draws only from its own generator and adds
+//! to its radiance in the same order either way, so both give the same bits.
 
-use super::gi::{GiCounts, GiScene, Integrator, Segment, survives};
+use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
+use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
 use super::sample::Pcg32;
+use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
 
 /// The path tracer over a prepared scene.
 pub struct PathTracer<'a> {
     pub scene: GiScene<'a>,
+}
+
+/// One path in flight: the ray it traces next and what it has gathered.
+#[derive(Clone, Copy, Debug)]
+struct Path {
+    seg: Segment,
+    beta: Vec3,
+    l: Vec3,
+    /// Density of the BSDF sample that made the current ray; `None` for the camera ray
+    /// and after a delta lobe (emission then counts in full).
+    bsdf_pdf: Option<f32>,
+    vertex: u32,
+    /// Direct light waiting for its shadow ray: the throughput at its vertex and the
+    /// radiance the light sample brings if the ray is unoccluded.
+    waiting: Option<(Vec3, Vec3)>,
+    alive: bool,
+}
+
+impl Path {
+    /// A path starting with camera ray `ray`.
+    fn new(ray: Ray) -> Path {
+        Path {
+            seg: Segment::new(ray),
+            beta: Vec3::ONE,
+            l: Vec3::ZERO,
+            bsdf_pdf: None,
+            vertex: 0,
+            waiting: None,
+            alive: true,
+        }
+    }
+
+    /// Adds the waiting direct light once its shadow ray is answered.
+    fn resolve(&mut self, occluded: bool) {
+        if let Some((beta, value)) = self.waiting.take() {
+            self.l += beta * if occluded { Vec3::ZERO } else { value };
+        }
+    }
+}
+
+impl PathTracer<'_> {
+    /// Takes `p` through the vertex where its current ray ends (`hit`, its closest hit):
+    /// emission, one light sample, one BSDF sample and Russian roulette. Returns the light
+    /// sample's shadow ray (counted), whose answer [`Path::resolve`] takes; the path is
+    /// then done, or holds the next ray to trace.
+    fn advance(
+        &self,
+        p: &mut Path,
+        hit: Option<Hit>,
+        rng: &mut Pcg32,
+        counts: &mut GiCounts,
+    ) -> Option<ShadowQuery> {
+        let g = &self.scene;
+        let Some(h) = g.at_hit(&p.seg, hit, &mut p.beta) else {
+            p.l += p.beta * g.lights.environment;
+            p.alive = false;
+            return None;
+        };
+        let le = g.emitted(&h);
+        if le != Vec3::ZERO {
+            let w = match p.bsdf_pdf {
+                Some(pdf) => {
+                    let light_pdf = g.lights.pdf(h.hit.prim, p.seg.ray.org, h.p);
+                    super::bsdf::power_heuristic(pdf, light_pdf)
+                }
+                None => 1.0,
+            };
+            p.l += p.beta * le * w;
+        }
+        if g.max_bounces.is_some_and(|m| p.vertex >= m) {
+            p.alive = false;
+            return None;
+        }
+        let wo = -p.seg.ray.dir;
+        let query = g.direct_query(&h, wo, rng, true);
+        match query {
+            Some(q) => {
+                counts.shadow += 1;
+                p.waiting = Some((p.beta, q.value));
+            }
+            None => p.l += p.beta * Vec3::ZERO,
+        }
+        let Some(s) = h.bsdf.sample(wo, rng) else {
+            p.alive = false;
+            return query;
+        };
+        p.beta *= s.weight;
+        if !survives(p.vertex, &mut p.beta, rng) {
+            p.alive = false;
+            return query;
+        }
+        p.bsdf_pdf = (!s.delta).then_some(s.pdf);
+        p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
+        counts.bounce += 1;
+        p.vertex += 1;
+        query
+    }
+
+    /// Answers a generation's shadow rays (`rays`, `point_light[i]` when ray `i` ends at
+    /// a point light) into `occluded`. In a packet mode the camera vertex's rays toward
+    /// point lights go as packets of the mode's width, in path order (neighbouring pixels,
+    /// so nearly one direction); every other ray goes in one stream.
+    fn shadows(
+        &self,
+        mode: Mode,
+        camera_vertex: bool,
+        rays: &[Ray],
+        point_light: &[bool],
+        occluded: &mut Vec<bool>,
+        counts: &mut GiCounts,
+    ) {
+        let accel = self.scene.shader.accel;
+        occluded.clear();
+        occluded.resize(rays.len(), false);
+        let packet = mode.group_mode();
+        if !camera_vertex || packet == Mode::Scalar {
+            occluded_unrelated(accel, mode, rays, occluded);
+            return;
+        }
+        let (packed, loose): (Vec<usize>, Vec<usize>) =
+            (0..rays.len()).partition(|&i| point_light[i]);
+        for group in packed.chunks(packet.packet_size()) {
+            counts.shadow_packets += 1;
+            let group_rays: Vec<Ray> = group.iter().map(|&i| rays[i]).collect();
+            let bits = occluded_rays(accel, packet, &group_rays);
+            for (lane, &i) in group.iter().enumerate() {
+                occluded[i] = bits & (1 << lane) != 0;
+            }
+        }
+        let loose_rays: Vec<Ray> = loose.iter().map(|&i| rays[i]).collect();
+        let mut answers = vec![false; loose_rays.len()];
+        occluded_unrelated(accel, mode, &loose_rays, &mut answers);
+        for (&i, a) in loose.iter().zip(answers) {
+            occluded[i] = a;
+        }
+    }
 }
 
 impl Integrator for PathTracer<'_> {
@@ -35,48 +180,69 @@ impl Integrator for PathTracer<'_> {
         rng: &mut Pcg32,
         counts: &mut GiCounts,
     ) -> Vec3 {
-        let g = &self.scene;
-        let mut seg = Segment::new(*ray);
-        let mut beta = Vec3::ONE;
-        let mut l = Vec3::ZERO;
-        // Density of the BSDF sample that made the current ray; `None` for the camera ray
-        // and after a delta lobe (emission then counts in full).
-        let mut bsdf_pdf: Option<f32> = None;
-        let mut vertex = 0u32;
-        let mut first = Some(first);
+        let accel = self.scene.shader.accel;
+        let mut p = Path::new(*ray);
+        let mut hit = first;
         loop {
-            let Some(h) = g.trace_known(&seg, first.take(), &mut beta) else {
-                l += beta * g.lights.environment;
-                break;
-            };
-            let le = g.emitted(&h);
-            if le != Vec3::ZERO {
-                let w = match bsdf_pdf {
-                    Some(pdf) => {
-                        let light_pdf = g.lights.pdf(h.hit.prim, seg.ray.org, h.p);
-                        super::bsdf::power_heuristic(pdf, light_pdf)
-                    }
-                    None => 1.0,
-                };
-                l += beta * le * w;
+            if let Some(q) = self.advance(&mut p, hit, rng, counts) {
+                p.resolve(accel.occluded(&q.ray));
             }
-            if g.max_bounces.is_some_and(|m| vertex >= m) {
-                break;
+            if !p.alive {
+                return p.l;
             }
-            let wo = -seg.ray.dir;
-            l += beta * g.direct(&h, wo, rng, true, counts);
-            let Some(s) = h.bsdf.sample(wo, rng) else {
-                break;
-            };
-            beta *= s.weight;
-            if !survives(vertex, &mut beta, rng) {
-                break;
-            }
-            bsdf_pdf = (!s.delta).then_some(s.pdf);
-            seg = g.spawn(&h, s.wi, s.transmitted, seg.medium);
-            counts.bounce += 1;
-            vertex += 1;
+            hit = accel.intersect(&p.seg.ray);
         }
-        l
+    }
+
+    fn radiance_batch(
+        &self,
+        rays: &[Ray],
+        first: &[Option<Hit>],
+        rngs: &mut [Pcg32],
+        mode: Mode,
+        counts: &mut GiCounts,
+    ) -> Vec<Vec3> {
+        let accel = self.scene.shader.accel;
+        let mut paths: Vec<Path> = rays.iter().map(|r| Path::new(*r)).collect();
+        // Live paths and the closest hits of their current rays, in the same order.
+        let mut live: Vec<usize> = (0..paths.len()).collect();
+        let mut hits: Vec<Hit> = first.iter().map(|h| h.unwrap_or(Hit::MISS)).collect();
+        let mut camera_vertex = true;
+        // The generation's shadow rays, the paths they belong to and their answers.
+        let (mut owners, mut shadow_rays, mut point_light) = (Vec::new(), Vec::new(), Vec::new());
+        let mut occluded = Vec::new();
+        let mut bounce_rays = Vec::new();
+        while !live.is_empty() {
+            owners.clear();
+            shadow_rays.clear();
+            point_light.clear();
+            for (&i, h) in live.iter().zip(&hits) {
+                let hit = h.is_hit().then_some(*h);
+                if let Some(q) = self.advance(&mut paths[i], hit, &mut rngs[i], counts) {
+                    owners.push(i);
+                    shadow_rays.push(q.ray);
+                    point_light.push(q.point_light);
+                }
+            }
+            self.shadows(
+                mode,
+                camera_vertex,
+                &shadow_rays,
+                &point_light,
+                &mut occluded,
+                counts,
+            );
+            for (&i, &o) in owners.iter().zip(&occluded) {
+                paths[i].resolve(o);
+            }
+            live.retain(|&i| paths[i].alive);
+            bounce_rays.clear();
+            bounce_rays.extend(live.iter().map(|&i| paths[i].seg.ray));
+            hits.clear();
+            hits.resize(bounce_rays.len(), Hit::MISS);
+            intersect_unrelated(accel, mode, &bounce_rays, &mut hits);
+            camera_vertex = false;
+        }
+        paths.iter().map(|p| p.l).collect()
     }
 }

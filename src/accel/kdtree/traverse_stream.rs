@@ -7,13 +7,21 @@
 //! without branches (several rays' unrelated turns would defeat the branch predictor)
 //! and asks for the line of that node, which arrives while the other walks step.
 //! perf/stream.md has the figures of each choice.
+//!
+//! A tree small enough to stay in the cache has no load latency to hide, and there
+//! interleaving only costs (the Cornell box's 45 nodes: 0.75x the scalar rate on diffuse
+//! rays): below [`STREAM_MIN_NODES`] nodes the stream queries walk ray by ray.
 
 use super::KdTree;
 use super::traverse::Walk;
+use crate::accel::Accel;
 use crate::ray::{Hit, Ray};
 
 /// Walks in flight per thread (4 gained less on Sponza diffuse, 16 no more).
 pub const STREAM_WAYS: usize = 8;
+
+/// Trees with fewer nodes answer streams ray by ray (perf/stream.md, "Small trees").
+pub const STREAM_MIN_NODES: usize = 8192;
 
 /// A walk in flight: which ray it traces and its closest hit so far.
 struct Slot {
@@ -24,8 +32,40 @@ struct Slot {
 
 impl KdTree {
     /// Closest hits of `rays` into `hits` (same length), as [`crate::accel::Accel::intersect`]
-    /// returns them, misses as [`Hit::MISS`].
+    /// returns them, misses as [`Hit::MISS`]: interleaved walks, or ray by ray in a tree
+    /// of fewer than [`STREAM_MIN_NODES`] nodes.
     pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+        if self.nodes.len() < STREAM_MIN_NODES {
+            for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                *h = self.intersect(r).unwrap_or(Hit::MISS);
+            }
+        } else {
+            self.intersect_interleaved(rays, hits);
+        }
+    }
+
+    /// Any-hit answers of `rays` into `occluded` (same length), as
+    /// [`crate::accel::Accel::occluded`] returns them, chosen as in
+    /// [`KdTree::intersect_stream`].
+    pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_stream: one answer per ray"
+        );
+        if self.nodes.len() < STREAM_MIN_NODES {
+            for (r, o) in rays.iter().zip(occluded.iter_mut()) {
+                *o = self.occluded(r);
+            }
+        } else {
+            self.occluded_interleaved(rays, occluded);
+        }
+    }
+
+    /// [`KdTree::intersect_stream`] through the interleaved walks whatever the tree's
+    /// size (tests run the kernel on small trees through this).
+    pub fn intersect_interleaved(&self, rays: &[Ray], hits: &mut [Hit]) {
         assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
         self.walk_stream::<false>(rays, |i, _, mut best| {
             self.prims.intersect_planes(&rays[i], &mut best);
@@ -33,9 +73,8 @@ impl KdTree {
         });
     }
 
-    /// Any-hit answers of `rays` into `occluded` (same length), as
-    /// [`crate::accel::Accel::occluded`] returns them.
-    pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+    /// [`KdTree::occluded_stream`] through the interleaved walks whatever the tree's size.
+    pub fn occluded_interleaved(&self, rays: &[Ray], occluded: &mut [bool]) {
         assert_eq!(
             rays.len(),
             occluded.len(),
