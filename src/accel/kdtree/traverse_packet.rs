@@ -333,29 +333,9 @@ impl KdTree {
             bump(|c| c.leaf_visits += 1);
             // Half the leaves are empty: skip the limit's arithmetic there.
             if !prims.is_empty() {
-                if ANY_HIT {
-                    let mut live = lanes;
-                    for &p in prims {
-                        bump(|c| c.prim_tests += 1);
-                        let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
-                        occluded |= hits.mask;
-                        live &= !hits.mask;
-                        if live.none() {
-                            break;
-                        }
-                    }
-                    if (active & !occluded).none() {
-                        return occluded;
-                    }
-                } else {
-                    let mut limit = next_up(best.t).min(rays.t_max);
-                    bump(|c| c.prim_tests += prims.len() as u64);
-                    for &p in prims {
-                        let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
-                        if best.merge(&hits, p).any() {
-                            limit = next_up(best.t).min(rays.t_max);
-                        }
-                    }
+                occluded |= self.leaf_packet::<W, ANY_HIT>(prims, rays, lanes, best);
+                if ANY_HIT && (active & !occluded).none() {
+                    return occluded;
                 }
             }
             loop {
@@ -373,5 +353,42 @@ impl KdTree {
                 }
             }
         }
+    }
+
+    /// The primitives `prims` of a leaf against the lanes `lanes` of `rays`. Closest hit:
+    /// folds hits into `best` (in [`Hit::is_closer`] order) and returns no lane. With
+    /// `ANY_HIT`: returns the lanes that hit anything in `(t_min, t_max)`, each lane
+    /// leaving at its first hit.
+    #[inline(always)]
+    pub(super) fn leaf_packet<W: Simd, const ANY_HIT: bool>(
+        &self,
+        prims: &[u32],
+        rays: &RayPacket<W>,
+        lanes: Mask<W>,
+        best: &mut HitPacket<W>,
+    ) -> Mask<W> {
+        let mut occluded = Mask::<W>::NONE;
+        if ANY_HIT {
+            let mut live = lanes;
+            for &p in prims {
+                bump(|c| c.prim_tests += 1);
+                let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
+                occluded |= hits.mask;
+                live &= !hits.mask;
+                if live.none() {
+                    break;
+                }
+            }
+        } else {
+            let mut limit = next_up(best.t).min(rays.t_max);
+            bump(|c| c.prim_tests += prims.len() as u64);
+            for &p in prims {
+                let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
+                if best.merge(&hits, p).any() {
+                    limit = next_up(best.t).min(rays.t_max);
+                }
+            }
+        }
+        occluded
     }
 }
