@@ -254,6 +254,9 @@ impl KdTree {
         }
         // Near is the left child on axes where the group's directions are not negative.
         let negative = rays.dir.map(|d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any());
+        // The same as bits (bit `a` for axis `a`), so that the next node's index is a
+        // shift away from the node just loaded, not a dependent load.
+        let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
         let zero = rays.dir.map(|d| d.cmp_eq(Vf::<W>::ZERO));
         let any_zero = zero.map(|z| (lanes & z).any());
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
@@ -276,11 +279,8 @@ impl KdTree {
                 let slack = slacks[axis];
                 let lo = t_split - slack;
                 let hi = t_split + slack;
-                let (near, far) = if negative[axis] {
-                    (children + 1, children)
-                } else {
-                    (children, children + 1)
-                };
+                let flip = (neg_bits >> axis) & 1;
+                let (near, far) = (children + flip, children + (flip ^ 1));
                 let (near_only, far_only) = if any_zero[axis] {
                     // Lanes parallel to the plane keep their interval and go to the
                     // sides within `margin` of their origin.

@@ -230,6 +230,8 @@ impl KdTree {
         }
         // Per axis, the groups' origins, reciprocals and plane slacks side by side, so
         // that a step loads them at one offset.
+        // As bits, so that the next node's index is a shift from the node just loaded.
+        let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
         let coord_max = self.coord_max();
         let o_max: [Vf<W>; G] = std::array::from_fn(|g| max_abs(&rays(g).org));
         let org: [[Vf<W>; G]; 3] = std::array::from_fn(|a| std::array::from_fn(|g| rays(g).org[a]));
@@ -248,11 +250,8 @@ impl KdTree {
                 let axis = n.axis();
                 let children = n.children();
                 let split = splat(n.split);
-                let (near, far) = if negative[axis] {
-                    (children + 1, children)
-                } else {
-                    (children, children + 1)
-                };
+                let flip = (neg_bits >> axis) & 1;
+                let (near, far) = (children + flip, children + (flip ^ 1));
                 let (org, inv, slack) = (&org[axis], &inv[axis], &slacks[axis]);
                 let t_split: [Vf<W>; G] = std::array::from_fn(|g| (split - org[g]) * inv[g]);
                 let lo: [Vf<W>; G] = std::array::from_fn(|g| t_split[g] - slack[g]);
