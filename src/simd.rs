@@ -182,8 +182,9 @@ pub fn quad_lane(i: usize) -> (u32, u32) {
     (p & 1, p >> 1)
 }
 
+/// A width marker: its lane count, pixel shape, scalar threshold and vector types.
 macro_rules! width {
-    ($w:ident, $f:ident, $u:ident, $n:literal, $shape:expr, $scalar_max:literal, $doc:literal) => {
+    ($w:ident, $f:ty, $u:ty, $mask:ty, $n:literal, $shape:expr, $scalar_max:literal, $doc:literal) => {
         #[doc = $doc]
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
         pub struct $w;
@@ -192,11 +193,17 @@ macro_rules! width {
             const LANES: usize = $n;
             const SHAPE: (u32, u32) = $shape;
             const SCALAR_GROUP_MAX: u32 = $scalar_max;
-            type F = wide::$f;
-            type U = wide::$u;
-            type Mask = VBool<wide::$f>;
+            type F = $f;
+            type U = $u;
+            type Mask = $mask;
         }
+    };
+}
 
+/// The [`Float`], [`Uint`] and [`LaneMask`] impls of one pair of `wide` types: masks
+/// are float vectors with every bit of a lane set or clear.
+macro_rules! wide_backend {
+    ($f:ident, $u:ident) => {
         impl BitAnd for VBool<wide::$f> {
             type Output = Self;
             #[inline]
@@ -358,17 +365,342 @@ macro_rules! width {
     };
 }
 
+wide_backend!(f32x4, u32x4);
+wide_backend!(f32x8, u32x8);
+wide_backend!(f32x16, u32x16);
+
 width!(
     W4,
-    f32x4,
-    u32x4,
+    wide::f32x4,
+    wide::u32x4,
+    VBool<wide::f32x4>,
     4,
     (2, 2),
     1,
     "4 lanes (SSE): the Wald packet."
 );
-width!(W8, f32x8, u32x8, 8, (4, 2), 2, "8 lanes (AVX2).");
-width!(W16, f32x16, u32x16, 16, (4, 4), 3, "16 lanes (AVX-512).");
+width!(
+    W8,
+    wide::f32x8,
+    wide::u32x8,
+    VBool<wide::f32x8>,
+    8,
+    (4, 2),
+    2,
+    "8 lanes (AVX2)."
+);
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+width!(
+    W16,
+    wide::f32x16,
+    wide::u32x16,
+    VBool<wide::f32x16>,
+    16,
+    (4, 4),
+    3,
+    "16 lanes (AVX-512; `wide`'s f32x16, two AVX2 registers on other CPUs)."
+);
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+width!(
+    W16,
+    avx512::F32x16,
+    avx512::U32x16,
+    VBool<u16>,
+    16,
+    (4, 4),
+    3,
+    "16 lanes (AVX-512, native: masks in `k` registers, see [`avx512`])."
+);
+
+/// The native AVX-512 backend of [`W16`]: one `zmm` register per quantity and lane masks
+/// in `k` registers (`__mmask16`), so comparisons, mask logic, selects and the lane
+/// bits never leave them. `wide`'s f32x16 returns its comparisons as vectors, which
+/// costs a `vpmovm2d`/`vpmovd2m` pair around every mask (perf/wide.md). Every operation
+/// repeats the one `wide` performs (same instruction, same operand order), so both
+/// backends and the scalar path give the same bits; a unit test compares them.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+pub mod avx512 {
+    use super::{Float, LaneBits, LaneMask, Uint, VBool};
+    use core::arch::x86_64::*;
+    use std::fmt;
+    use std::ops::{Add, BitAnd, BitAndAssign, BitOr, BitOrAssign, Div, Mul, Neg, Not, Sub};
+
+    /// Calls AVX-512F intrinsics, which Rust marks unsafe unless the calling function
+    /// itself enables the feature.
+    macro_rules! avx {
+        ($e:expr) => {
+            // SAFETY: this module is compiled only when the build enables AVX-512F
+            // (`cfg(target_feature = "avx512f")`), so the CPU running it has it.
+            unsafe { $e }
+        };
+    }
+
+    /// Sixteen f32 lanes in one `zmm` register.
+    #[derive(Clone, Copy)]
+    #[repr(transparent)]
+    pub struct F32x16(__m512);
+
+    /// Sixteen u32 lanes in one `zmm` register.
+    #[derive(Clone, Copy)]
+    #[repr(transparent)]
+    pub struct U32x16(__m512i);
+
+    impl F32x16 {
+        #[inline]
+        fn to_array(self) -> [f32; 16] {
+            // SAFETY: `__m512` and `[f32; 16]` have the same size, every bit pattern is
+            // valid for both.
+            unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }
+        }
+        #[inline]
+        fn from_array(a: [f32; 16]) -> F32x16 {
+            // SAFETY: as in `to_array`.
+            F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>(a) })
+        }
+    }
+
+    impl U32x16 {
+        #[inline]
+        fn to_array(self) -> [u32; 16] {
+            // SAFETY: `__m512i` and `[u32; 16]` have the same size, every bit pattern is
+            // valid for both.
+            unsafe { std::mem::transmute::<__m512i, [u32; 16]>(self.0) }
+        }
+        #[inline]
+        fn from_array(a: [u32; 16]) -> U32x16 {
+            // SAFETY: as in `to_array`.
+            U32x16(unsafe { std::mem::transmute::<[u32; 16], __m512i>(a) })
+        }
+    }
+
+    impl fmt::Debug for F32x16 {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.debug_list().entries(self.to_array()).finish()
+        }
+    }
+
+    impl fmt::Debug for U32x16 {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.debug_list().entries(self.to_array()).finish()
+        }
+    }
+
+    macro_rules! binary {
+        ($t:ident, $tr:ident, $m:ident, $op:ident) => {
+            impl $tr for $t {
+                type Output = $t;
+                #[inline(always)]
+                fn $m(self, o: $t) -> $t {
+                    avx!($t($op(self.0, o.0)))
+                }
+            }
+        };
+    }
+    binary!(F32x16, Add, add, _mm512_add_ps);
+    binary!(F32x16, Sub, sub, _mm512_sub_ps);
+    binary!(F32x16, Mul, mul, _mm512_mul_ps);
+    binary!(F32x16, Div, div, _mm512_div_ps);
+    binary!(U32x16, Add, add, _mm512_add_epi32);
+    binary!(U32x16, Sub, sub, _mm512_sub_epi32);
+
+    impl Neg for F32x16 {
+        type Output = F32x16;
+        /// Flips the sign bit, as `wide` and the scalar `-x` do (`-0.0` from `0.0`).
+        #[inline(always)]
+        fn neg(self) -> F32x16 {
+            avx!(F32x16(_mm512_castsi512_ps(_mm512_xor_si512(
+                _mm512_castps_si512(self.0),
+                _mm512_set1_epi32(i32::MIN),
+            ))))
+        }
+    }
+
+    impl BitAnd for VBool<u16> {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, o: Self) -> Self {
+            VBool(self.0 & o.0)
+        }
+    }
+
+    impl BitOr for VBool<u16> {
+        type Output = Self;
+        #[inline(always)]
+        fn bitor(self, o: Self) -> Self {
+            VBool(self.0 | o.0)
+        }
+    }
+
+    impl Not for VBool<u16> {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            VBool(!self.0)
+        }
+    }
+
+    impl BitAndAssign for VBool<u16> {
+        #[inline(always)]
+        fn bitand_assign(&mut self, o: Self) {
+            self.0 &= o.0;
+        }
+    }
+
+    impl BitOrAssign for VBool<u16> {
+        #[inline(always)]
+        fn bitor_assign(&mut self, o: Self) {
+            self.0 |= o.0;
+        }
+    }
+
+    impl LaneMask for VBool<u16> {
+        const NONE: Self = VBool(0);
+        #[inline(always)]
+        fn from_bits(bits: LaneBits) -> Self {
+            VBool(bits as u16)
+        }
+        #[inline(always)]
+        fn bits(self) -> LaneBits {
+            self.0 as LaneBits
+        }
+        #[inline(always)]
+        fn any(self) -> bool {
+            self.0 != 0
+        }
+    }
+
+    /// `a OP b` per lane into a `k` mask; the `_OQ` predicates are false on NaN, as
+    /// `wide`'s ordered comparisons and the scalar operators.
+    #[inline(always)]
+    fn cmp<const P: i32>(a: F32x16, b: F32x16) -> VBool<u16> {
+        avx!(VBool(_mm512_cmp_ps_mask::<P>(a.0, b.0)))
+    }
+
+    impl Float for F32x16 {
+        type Mask = VBool<u16>;
+        type U = U32x16;
+        // SAFETY: sixteen f32 fill a `__m512` exactly.
+        const ZERO: Self = F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>([0.0; 16]) });
+        // SAFETY: as for `ZERO`.
+        const ONE: Self = F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>([1.0; 16]) });
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            avx!(F32x16(_mm512_set1_ps(x)))
+        }
+        #[inline]
+        fn from_fn(f: impl FnMut(usize) -> f32) -> Self {
+            F32x16::from_array(std::array::from_fn(f))
+        }
+        #[inline]
+        fn lane(&self, i: usize) -> f32 {
+            // SAFETY: `F32x16` is a transparent `__m512`, which has the size of and a
+            // stricter alignment than `[f32; 16]`; every bit pattern is a valid f32.
+            let lanes = unsafe { &*(self as *const F32x16).cast::<[f32; 16]>() };
+            lanes[i]
+        }
+        #[inline(always)]
+        fn cmp_lt(self, o: Self) -> Self::Mask {
+            cmp::<_CMP_LT_OQ>(self, o)
+        }
+        #[inline(always)]
+        fn cmp_gt(self, o: Self) -> Self::Mask {
+            cmp::<_CMP_GT_OQ>(self, o)
+        }
+        #[inline(always)]
+        fn cmp_le(self, o: Self) -> Self::Mask {
+            cmp::<_CMP_LE_OQ>(self, o)
+        }
+        #[inline(always)]
+        fn cmp_ge(self, o: Self) -> Self::Mask {
+            cmp::<_CMP_GE_OQ>(self, o)
+        }
+        #[inline(always)]
+        fn cmp_eq(self, o: Self) -> Self::Mask {
+            cmp::<_CMP_EQ_OQ>(self, o)
+        }
+        /// `|x| < inf`: false on NaN and on infinities, as `wide`'s exponent test.
+        #[inline(always)]
+        fn finite(self) -> Self::Mask {
+            cmp::<_CMP_LT_OQ>(self.abs(), F32x16::splat(f32::INFINITY))
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            avx!(F32x16(_mm512_abs_ps(self.0)))
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            avx!(F32x16(_mm512_sqrt_ps(self.0)))
+        }
+        /// `vminps` keeps the second operand on NaN; `wide` (and this) then takes `self`
+        /// where `o` is NaN.
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            avx!(F32x16(_mm512_mask_blend_ps(
+                _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(o.0, o.0),
+                _mm512_min_ps(self.0, o.0),
+                self.0,
+            )))
+        }
+        /// As [`Float::min`], with `vmaxps`.
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            avx!(F32x16(_mm512_mask_blend_ps(
+                _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(o.0, o.0),
+                _mm512_max_ps(self.0, o.0),
+                self.0,
+            )))
+        }
+        #[inline(always)]
+        fn min_lt(self, o: Self) -> Self {
+            avx!(F32x16(_mm512_min_ps(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn max_gt(self, o: Self) -> Self {
+            avx!(F32x16(_mm512_max_ps(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn to_bits(self) -> U32x16 {
+            avx!(U32x16(_mm512_castps_si512(self.0)))
+        }
+        #[inline(always)]
+        fn from_bits(u: U32x16) -> Self {
+            avx!(F32x16(_mm512_castsi512_ps(u.0)))
+        }
+        #[inline(always)]
+        fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
+            avx!(F32x16(_mm512_mask_blend_ps(mask.0, if_false.0, if_true.0)))
+        }
+    }
+
+    impl Uint for U32x16 {
+        type Mask = VBool<u16>;
+        #[inline(always)]
+        fn splat(x: u32) -> Self {
+            avx!(U32x16(_mm512_set1_epi32(x as i32)))
+        }
+        #[inline]
+        fn from_fn(f: impl FnMut(usize) -> u32) -> Self {
+            U32x16::from_array(std::array::from_fn(f))
+        }
+        #[inline]
+        fn lane(&self, i: usize) -> u32 {
+            // SAFETY: `U32x16` is a transparent `__m512i`, which has the size of and a
+            // stricter alignment than `[u32; 16]`; every bit pattern is a valid u32.
+            let lanes = unsafe { &*(self as *const U32x16).cast::<[u32; 16]>() };
+            lanes[i]
+        }
+        #[inline(always)]
+        fn cmp_gt(self, o: Self) -> Self::Mask {
+            avx!(VBool(_mm512_cmpgt_epu32_mask(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
+            avx!(U32x16(_mm512_mask_blend_epi32(
+                mask.0, if_false.0, if_true.0
+            )))
+        }
+    }
+}
 
 /// The widest packet this CPU runs natively: 16 with AVX-512F, 8 with AVX2, else 4.
 /// The build targets the CPU it runs on (`.cargo/config.toml`), so a wider packet on a
@@ -473,6 +805,93 @@ mod tests {
                 assert_eq!(lo.to_bits(), pick_min(a, b).to_bits(), "min({a:?}, {b:?})");
                 assert_eq!(hi.to_bits(), pick_max(a, b).to_bits(), "max({a:?}, {b:?})");
             }
+        }
+    }
+
+    /// The native AVX-512 backend repeats `wide`'s f32x16 operation by operation: every
+    /// operation of the traits, on every pair of an adversarial set of values, gives the
+    /// same bits (and the same mask bits) in both.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    #[test]
+    fn native_avx512_matches_wide() {
+        use wide::{f32x16, u32x16};
+        type N = Vf<W16>;
+        let xs = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            -2.5,
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE / 4.0,
+            f32::MAX,
+            f32::MIN,
+            1e-30,
+            3.0e7,
+        ];
+        let n = xs.len();
+        let bits_n = |v: N| std::array::from_fn::<u32, 16, _>(|i| v.lane(i).to_bits());
+        let bits_w = |v: f32x16| std::array::from_fn::<u32, 16, _>(|i| v.lane(i).to_bits());
+        for shift in 0..n {
+            let a_n = N::from_fn(|i| xs[i % n]);
+            let b_n = N::from_fn(|i| xs[(i + shift) % n]);
+            let a_w = f32x16::from_fn(|i| xs[i % n]);
+            let b_w = f32x16::from_fn(|i| xs[(i + shift) % n]);
+            let values: [(N, f32x16); 14] = [
+                (a_n + b_n, a_w + b_w),
+                (a_n - b_n, a_w - b_w),
+                (a_n * b_n, a_w * b_w),
+                (a_n / b_n, a_w / b_w),
+                (-a_n, -a_w),
+                (a_n.abs(), a_w.abs()),
+                (a_n.sqrt(), Float::sqrt(a_w)),
+                (a_n.min(b_n), Float::min(a_w, b_w)),
+                (a_n.max(b_n), Float::max(a_w, b_w)),
+                (a_n.min_lt(b_n), a_w.min_lt(b_w)),
+                (a_n.max_gt(b_n), a_w.max_gt(b_w)),
+                (
+                    N::select(a_n.cmp_lt(b_n), a_n, b_n),
+                    <f32x16 as Float>::select(a_w.cmp_lt(b_w), a_w, b_w),
+                ),
+                (
+                    N::from_bits(a_n.to_bits() + Vu::<W16>::splat(1)),
+                    f32x16::from_bits(a_w.to_bits() + u32x16::splat(1)),
+                ),
+                (
+                    N::from_bits(a_n.to_bits() - Vu::<W16>::splat(1)),
+                    f32x16::from_bits(a_w.to_bits() - u32x16::splat(1)),
+                ),
+            ];
+            for (k, (v_n, v_w)) in values.into_iter().enumerate() {
+                assert_eq!(bits_n(v_n), bits_w(v_w), "operation {k}, shift {shift}");
+            }
+            let masks = [
+                (a_n.cmp_lt(b_n), a_w.cmp_lt(b_w)),
+                (a_n.cmp_gt(b_n), a_w.cmp_gt(b_w)),
+                (a_n.cmp_le(b_n), a_w.cmp_le(b_w)),
+                (a_n.cmp_ge(b_n), a_w.cmp_ge(b_w)),
+                (a_n.cmp_eq(b_n), a_w.cmp_eq(b_w)),
+                (a_n.finite(), a_w.finite()),
+                (
+                    a_n.to_bits().cmp_gt(b_n.to_bits()),
+                    a_w.to_bits().cmp_gt(b_w.to_bits()),
+                ),
+            ];
+            for (k, (m_n, m_w)) in masks.into_iter().enumerate() {
+                assert_eq!(m_n.bits(), m_w.bits(), "comparison {k}, shift {shift}");
+                assert_eq!(m_n.any(), m_w.any());
+            }
+            let m = a_n.cmp_lt(b_n);
+            let u = Vu::<W16>::select(m, a_n.to_bits(), b_n.to_bits());
+            assert_eq!(
+                std::array::from_fn::<u32, 16, _>(|i| u.lane(i)),
+                bits_n(N::select(m, a_n, b_n))
+            );
         }
     }
 

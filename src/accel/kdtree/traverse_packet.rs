@@ -254,6 +254,9 @@ impl KdTree {
         }
         // Near is the left child on axes where the group's directions are not negative.
         let negative = rays.dir.map(|d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any());
+        // The same as bits (bit `a` for axis `a`), so that the next node's index is a
+        // shift away from the node just loaded, not a dependent load.
+        let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
         let zero = rays.dir.map(|d| d.cmp_eq(Vf::<W>::ZERO));
         let any_zero = zero.map(|z| (lanes & z).any());
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
@@ -276,11 +279,8 @@ impl KdTree {
                 let slack = slacks[axis];
                 let lo = t_split - slack;
                 let hi = t_split + slack;
-                let (near, far) = if negative[axis] {
-                    (children + 1, children)
-                } else {
-                    (children, children + 1)
-                };
+                let flip = (neg_bits >> axis) & 1;
+                let (near, far) = (children + flip, children + (flip ^ 1));
                 let (near_only, far_only) = if any_zero[axis] {
                     // Lanes parallel to the plane keep their interval and go to the
                     // sides within `margin` of their origin.
@@ -333,29 +333,9 @@ impl KdTree {
             bump(|c| c.leaf_visits += 1);
             // Half the leaves are empty: skip the limit's arithmetic there.
             if !prims.is_empty() {
-                if ANY_HIT {
-                    let mut live = lanes;
-                    for &p in prims {
-                        bump(|c| c.prim_tests += 1);
-                        let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
-                        occluded |= hits.mask;
-                        live &= !hits.mask;
-                        if live.none() {
-                            break;
-                        }
-                    }
-                    if (active & !occluded).none() {
-                        return occluded;
-                    }
-                } else {
-                    let mut limit = next_up(best.t).min(rays.t_max);
-                    bump(|c| c.prim_tests += prims.len() as u64);
-                    for &p in prims {
-                        let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
-                        if best.merge(&hits, p).any() {
-                            limit = next_up(best.t).min(rays.t_max);
-                        }
-                    }
+                occluded |= self.leaf_packet::<W, ANY_HIT>(prims, rays, lanes, best);
+                if ANY_HIT && (active & !occluded).none() {
+                    return occluded;
                 }
             }
             loop {
@@ -373,5 +353,42 @@ impl KdTree {
                 }
             }
         }
+    }
+
+    /// The primitives `prims` of a leaf against the lanes `lanes` of `rays`. Closest hit:
+    /// folds hits into `best` (in [`Hit::is_closer`] order) and returns no lane. With
+    /// `ANY_HIT`: returns the lanes that hit anything in `(t_min, t_max)`, each lane
+    /// leaving at its first hit.
+    #[inline(always)]
+    pub(super) fn leaf_packet<W: Simd, const ANY_HIT: bool>(
+        &self,
+        prims: &[u32],
+        rays: &RayPacket<W>,
+        lanes: Mask<W>,
+        best: &mut HitPacket<W>,
+    ) -> Mask<W> {
+        let mut occluded = Mask::<W>::NONE;
+        if ANY_HIT {
+            let mut live = lanes;
+            for &p in prims {
+                bump(|c| c.prim_tests += 1);
+                let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
+                occluded |= hits.mask;
+                live &= !hits.mask;
+                if live.none() {
+                    break;
+                }
+            }
+        } else {
+            let mut limit = next_up(best.t).min(rays.t_max);
+            bump(|c| c.prim_tests += prims.len() as u64);
+            for &p in prims {
+                let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
+                if best.merge(&hits, p).any() {
+                    limit = next_up(best.t).min(rays.t_max);
+                }
+            }
+        }
+        occluded
     }
 }
