@@ -233,6 +233,14 @@ fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
     (b.min.is_finite() && b.max.is_finite() && !b.is_empty()).then_some(b)
 }
 
+/// Maps a float to a `u32` with the same order (negative values flipped): the sweep's
+/// event keys and the small nodes' plane keys.
+#[inline]
+fn order_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 1 << 31 }
+}
+
 /// The cells on either side of the plane `pos` on `axis`.
 fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
     let (mut left, mut right) = (*cell, *cell);
@@ -260,6 +268,7 @@ struct PlaneCost {
 
 impl PlaneCost {
     /// `None` when the cell has no area (or a NaN one).
+    #[inline]
     fn new(cell: &Aabb, axis: usize, params: &BuildParams) -> Option<PlaneCost> {
         let e = cell.max - cell.min;
         let area = e.x * e.y + e.y * e.z + e.z * e.x;
