@@ -3,17 +3,18 @@
 //! dynamic scenes", 2007).
 //!
 //! - A node holds references: a primitive id and the bounds of its part in the cell.
-//!   Each reference is counted in [`BINS`] equal bins per axis twice, its minimum in one
+//!   Each reference is counted in equal bins per axis ([`BINS`] for large nodes, a
+//!   quarter of its references, at least [`MIN_BINS`], for smaller ones) twice, its minimum in one
 //!   table and its maximum in another; one pass over the bin boundaries then knows, for
 //!   each, how many references start left of it and how many end right of it, and the
 //!   boundary with the lowest SAH ([`PlaneCost`], the sweep's cost) wins. A maximum on a
 //!   boundary counts in the bin below it, as the partition puts it left of that plane.
 //! - The references are partitioned against that plane; straddlers get perfect splits
 //!   ([`Builder::split_prim`], as in the sweep).
-//! - Below [`BuildParams::sweep_below`](super::BuildParams::sweep_below) references, or
-//!   when no boundary beats a leaf, the node's events are made and sorted and the exact
-//!   sweep builds its subtree: small nodes are where the exact planes pay, and where
-//!   binning's fixed cost per node stops paying.
+//! - Below [`SMALL`] references the small nodes' exact counting takes over. Below
+//!   [`BuildParams::sweep_below`](super::BuildParams::sweep_below) references (when set
+//!   above [`SMALL`]), or when no boundary beats a leaf, the node's events are made and
+//!   sorted and the exact sweep builds its subtree.
 //! - Parallel: a large node bins and partitions its references in chunks of [`CHUNK`]
 //!   on the rayon pool; bin counts are integers summed in any order and the chunks'
 //!   outputs are concatenated in order, so the result is the serial one. Large subtrees
@@ -27,8 +28,14 @@ use crate::scene::{Aabb, Geometry};
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Bins per axis (Mitsuba's kd-tree builder uses 128).
+/// Most bins per axis (Mitsuba's kd-tree builder uses 128).
 const BINS: usize = 128;
+
+/// Fewest bins per axis: a node of n references gets n / 4 bins between the two (the
+/// refinement prices the bounds near the best boundary exactly, so small nodes lose
+/// little with coarse bins, and pricing 3 x 127 boundaries would cost more than
+/// counting their references).
+const MIN_BINS: usize = 16;
 
 /// References per chunk of the parallel passes (a fixed size, so the chunks, and the
 /// order their outputs are joined in, do not depend on the thread count).
@@ -44,11 +51,13 @@ struct Bins {
 
 impl Bins {
     fn zero() -> Box<Bins> {
-        Box::new(Bins {
-            starts: [[0; BINS]; 3],
-            ends: [[0; BINS]; 3],
-        })
+        Box::new(Bins::ZERO)
     }
+
+    const ZERO: Bins = Bins {
+        starts: [[0; BINS]; 3],
+        ends: [[0; BINS]; 3],
+    };
 
     fn add(mut self: Box<Bins>, other: Box<Bins>) -> Box<Bins> {
         for axis in 0..3 {
@@ -65,17 +74,21 @@ impl Bins {
 #[derive(Clone, Copy)]
 struct Binner {
     lo: Vec3,
-    /// `BINS / extent` per axis (0 on a flat axis, which gets no plane).
+    /// `bins / extent` per axis (0 on a flat axis, which gets no plane).
     scale: Vec3,
+    /// Bins per axis in use (at most [`BINS`]).
+    bins: usize,
 }
 
 impl Binner {
-    fn new(cell: &Aabb) -> Binner {
+    fn new(cell: &Aabb, refs: usize) -> Binner {
+        let bins = (refs / 4).clamp(MIN_BINS, BINS);
         let e = cell.max - cell.min;
-        let scale = Vec3::select(e.cmpgt(Vec3::ZERO), BINS as f32 / e, Vec3::ZERO);
+        let scale = Vec3::select(e.cmpgt(Vec3::ZERO), bins as f32 / e, Vec3::ZERO);
         Binner {
             lo: cell.min,
             scale,
+            bins,
         }
     }
 
@@ -85,10 +98,10 @@ impl Binner {
     fn bins_of(&self, b: &Aabb, axis: usize) -> (usize, usize) {
         let f_min = (b.min[axis] - self.lo[axis]) * self.scale[axis];
         let f_max = (b.max[axis] - self.lo[axis]) * self.scale[axis];
-        let first = (f_min as usize).min(BINS - 1);
+        let first = (f_min as usize).min(self.bins - 1);
         let last = (f_max.ceil() as usize)
             .saturating_sub(1)
-            .clamp(first, BINS - 1);
+            .clamp(first, self.bins - 1);
         (first, last)
     }
 
@@ -208,7 +221,7 @@ impl Builder<'_> {
     /// Ties keep the first boundary (axes in order, then positions), so the choice is
     /// deterministic.
     fn binned_plane(&self, cell: &Aabb, refs: &[Ref]) -> Option<(usize, f32)> {
-        let binner = Binner::new(cell);
+        let binner = Binner::new(cell, refs.len());
         let bins = if self.parallel_here(refs.len()) {
             refs.par_chunks(CHUNK)
                 .map(|chunk| {
@@ -218,7 +231,7 @@ impl Builder<'_> {
                 })
                 .reduce(Bins::zero, Bins::add)
         } else {
-            let mut bins = Bins::zero();
+            let mut bins = Box::new(Bins::ZERO);
             binner.count(refs, &mut bins);
             bins
         };
@@ -228,9 +241,9 @@ impl Builder<'_> {
         for axis in 0..3 {
             let pricing = PlaneCost::new(cell, axis, self.params)?;
             let (lo, hi) = (pricing.lo, pricing.hi);
-            let step = (hi - lo) / BINS as f32;
+            let step = (hi - lo) / binner.bins as f32;
             let (mut n_left, mut n_right) = (0u32, n);
-            for i in 1..BINS {
+            for i in 1..binner.bins {
                 n_left += bins.starts[axis][i - 1];
                 n_right -= bins.ends[axis][i - 1];
                 let pos = lo + step * i as f32;
