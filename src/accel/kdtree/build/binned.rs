@@ -357,7 +357,7 @@ impl Builder<'_> {
                 Side::Left => left.push(*r),
                 Side::Right => right.push(*r),
                 Side::Both => {
-                    let [l, rt] = self.split_prim(r.prim, cell, axis, pos);
+                    let [l, rt] = self.split_within(r.prim, &r.bounds, cell, axis, pos);
                     if let Some(bounds) = l {
                         left.push(Ref {
                             bounds,

@@ -265,7 +265,7 @@ pub fn split_triangle_within(
     let whole = triangle_bounds(&tri);
     let scale = whole.min.abs().max(whole.max.abs());
     let (left_cell, right_cell) = child_cells(cell, axis, pos);
-    let parts = Polygon::triangle(tri).split_bounds(axis, pos, scale);
+    let parts = split_triangle_bounds(&tri, axis, pos, scale);
     let mut bounds = [None; 2];
     for ((b, side), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
         let region = intersect_boxes(part, &child);
@@ -277,6 +277,34 @@ pub fn split_triangle_within(
             .or_else(|| overlap_fallback(tri, &whole, &region));
     }
     bounds
+}
+
+/// [`Polygon::split_bounds`] of a whole triangle (every corner its own), unrolled for its
+/// three corners: the same bounds without the polygon's corner loop.
+#[inline]
+fn split_triangle_bounds(tri: &[Vec3; 3], axis: usize, plane: f32, scale: Vec3) -> [Aabb; 2] {
+    let below = tri.map(|p| p[axis] <= plane);
+    let above = tri.map(|p| p[axis] >= plane);
+    let mut parts = [Aabb::EMPTY; 2];
+    for i in 0..3 {
+        let j = if i == 2 { 0 } else { i + 1 };
+        if below[i] {
+            parts[0].grow(tri[i]);
+        }
+        if above[i] {
+            parts[1].grow(tri[i]);
+        }
+        let (cuts_below, cuts_above) = (below[i] != below[j], above[i] != above[j]);
+        if cuts_below || cuts_above {
+            let p = crossing(&tri[i].to_array(), &tri[j].to_array(), axis, plane);
+            for (part, cut) in parts.iter_mut().zip([cuts_below, cuts_above]) {
+                if cut {
+                    grow_corner(part, p, false, scale);
+                }
+            }
+        }
+    }
+    parts
 }
 
 /// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over
