@@ -318,18 +318,32 @@ impl Builder<'_> {
             list.sort_unstable_by(f32::total_cmp);
         }
         let (mut best_pos, mut best_cost) = (pos, cost);
-        for &p in mins.iter().chain(&maxs).chain(&planars) {
-            if !(p > pricing.lo && p < pricing.hi) {
-                continue;
-            }
-            // A reference flat in the plane goes right (see `side`).
-            let n_left = base_left + mins.partition_point(|&m| m < p) as u32;
-            let n_right = base_right
-                + (maxs.len() - maxs.partition_point(|&m| m <= p)) as u32
-                + (planars.len() - planars.partition_point(|&m| m < p)) as u32;
-            let c = pricing.cost(pricing.probabilities(p), n_left, n_right);
-            if c < best_cost || (c == best_cost && p < best_pos) {
-                (best_pos, best_cost) = (p, c);
+        // Each list is sorted, so within one list the counts below a candidate only grow:
+        // three cursors walk forward instead of searching for every candidate.
+        for list in [&mins, &maxs, &planars] {
+            let (mut below_min, mut upto_max, mut below_planar) = (0, 0, 0);
+            for &p in list.iter() {
+                if !(p > pricing.lo && p < pricing.hi) {
+                    continue;
+                }
+                while below_min < mins.len() && mins[below_min] < p {
+                    below_min += 1;
+                }
+                while upto_max < maxs.len() && maxs[upto_max] <= p {
+                    upto_max += 1;
+                }
+                while below_planar < planars.len() && planars[below_planar] < p {
+                    below_planar += 1;
+                }
+                // A reference flat in the plane goes right (see `side`).
+                let n_left = base_left + below_min as u32;
+                let n_right = base_right
+                    + (maxs.len() - upto_max) as u32
+                    + (planars.len() - below_planar) as u32;
+                let c = pricing.cost(pricing.probabilities(p), n_left, n_right);
+                if c < best_cost || (c == best_cost && p < best_pos) {
+                    (best_pos, best_cost) = (p, c);
+                }
             }
         }
         best_pos
