@@ -102,25 +102,14 @@ impl SmallNode {
         let mut left = [0u32; CANDIDATES];
         let mut right = [0u32; CANDIDATES];
         let mut planar = [0u32; CANDIDATES];
-        for i in 0..self.len {
-            let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
-            for c in 0..chunks {
-                let j = c * LANES;
-                let p: &[f32; LANES] = cand[j..][..LANES].try_into().expect("chunk");
-                let l: &mut [u32; LANES] = (&mut left[j..][..LANES]).try_into().expect("chunk");
-                let r: &mut [u32; LANES] = (&mut right[j..][..LANES]).try_into().expect("chunk");
-                for k in 0..LANES {
-                    l[k] += (lo < p[k]) as u32;
-                    r[k] += (hi > p[k]) as u32;
-                }
-                if lo == hi {
-                    let pl: &mut [u32; LANES] =
-                        (&mut planar[j..][..LANES]).try_into().expect("chunk");
-                    for k in 0..LANES {
-                        pl[k] += (lo == p[k]) as u32;
-                    }
-                }
-            }
+        let counts = (&mut left, &mut right, &mut planar);
+        match chunks {
+            1 => count::<1>(cand, self.len, counts),
+            2 => count::<2>(cand, self.len, counts),
+            3 => count::<3>(cand, self.len, counts),
+            4 => count::<4>(cand, self.len, counts),
+            5 => count::<5>(cand, self.len, counts),
+            _ => count::<{ CANDIDATES / LANES }>(cand, self.len, counts),
         }
         // Each candidate's cost and position as one integer key (costs and positions
         // order like their `order_bits`), so the cheapest, then lowest, is a vector
@@ -167,6 +156,34 @@ impl SmallNode {
         let best_left = with_left < with_right;
         let best_cost = if best_left { with_left } else { with_right };
         (best_cost, p, best_left)
+    }
+}
+
+/// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
+/// per candidate, the references starting left of it, ending right of it and lying in
+/// it. `C` is a constant so the chunks and their counts stay in vector registers while
+/// the references go by.
+#[inline]
+fn count<const C: usize>(
+    cand: &[f32; CANDIDATES],
+    len: usize,
+    (left, right, planar): (
+        &mut [u32; CANDIDATES],
+        &mut [u32; CANDIDATES],
+        &mut [u32; CANDIDATES],
+    ),
+) {
+    for i in 0..len {
+        let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
+        for j in 0..C * LANES {
+            left[j] += (lo < cand[j]) as u32;
+            right[j] += (hi > cand[j]) as u32;
+        }
+        if lo == hi {
+            for j in 0..C * LANES {
+                planar[j] += (lo == cand[j]) as u32;
+            }
+        }
     }
 }
 
