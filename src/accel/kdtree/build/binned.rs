@@ -104,10 +104,12 @@ impl Binner {
     fn bins_of(&self, b: &Aabb, axis: usize) -> (usize, usize) {
         let f_min = (b.min[axis] - self.lo[axis]) * self.scale[axis];
         let f_max = (b.max[axis] - self.lo[axis]) * self.scale[axis];
-        let first = (f_min as usize).min(self.bins - 1);
-        let last = (f_max.ceil() as usize)
+        // Clamped as floats first, so the casts need no saturation (same bins).
+        let top = self.bins as f32;
+        let first = f_min.clamp(0.0, top - 1.0) as usize;
+        let last = (f_max.ceil().clamp(1.0, top) as usize)
             .saturating_sub(1)
-            .clamp(first, self.bins - 1);
+            .max(first);
         (first, last)
     }
 
