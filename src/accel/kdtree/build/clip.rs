@@ -22,7 +22,7 @@ const CLIP_SLACK: f32 = 1e-6;
 const CLIP_VERTICES: usize = 10;
 
 /// The point where the edge from `a` to `b` crosses the plane `p[axis] = plane`, put
-/// exactly on it; [`Polygon::clip`] and [`Polygon::split`] share it so both cut alike.
+/// exactly on it; [`Polygon::clip`] and [`Polygon::split_bounds`] share it so both cut alike.
 #[inline]
 fn crossing(a: &[f32; 3], b: &[f32; 3], axis: usize, plane: f32) -> [f32; 3] {
     let t = (plane - a[axis]) / (b[axis] - a[axis]);
@@ -99,23 +99,12 @@ impl Polygon {
         Some(out)
     }
 
-    /// Appends corner `p` (`exact` when it is one of the triangle's own); `false` when the
-    /// corner array is full.
-    fn push(&mut self, p: [f32; 3], exact: u32) -> bool {
-        let Some(slot) = self.corners.get_mut(self.len) else {
-            return false;
-        };
-        *slot = p;
-        self.exact |= exact << self.len;
-        self.len += 1;
-        true
-    }
-
-    /// The parts with `p[axis] <= plane` and with `p[axis] >= plane`, the same polygons
-    /// as [`Polygon::clip`] gives for each side, in one pass that computes each point
+    /// Bounds of the parts with `p[axis] <= plane` and with `p[axis] >= plane` (empty
+    /// for a side with no corner), as [`Polygon::clip`] and [`Polygon::bounds_in`] give
+    /// them for each side, in one pass that builds no polygon and computes each point
     /// where an edge crosses the plane once for both (the division is the clipper's
-    /// slowest step). A part is `None` when it would overflow the corner array.
-    fn split(&self, axis: usize, plane: f32) -> [Option<Polygon>; 2] {
+    /// slowest step). `scale` as in [`Polygon::bounds_in`].
+    fn split_bounds(&self, axis: usize, plane: f32, scale: Vec3) -> [Aabb; 2] {
         let len = self.len;
         let corners = &self.corners[..len];
         // Bit i: corner i is on the part's side.
@@ -124,29 +113,27 @@ impl Polygon {
             below |= ((p[axis] <= plane) as u32) << i;
             above |= ((p[axis] >= plane) as u32) << i;
         }
-        let empty = Polygon {
-            corners: [[0.0; 3]; CLIP_VERTICES],
-            exact: 0,
-            len: 0,
-        };
-        let mut parts = [empty; 2];
-        let mut fits = [true; 2];
+        let mut parts = [Aabb::EMPTY; 2];
         for (i, a) in corners.iter().enumerate() {
             let j = if i + 1 == len { 0 } else { i + 1 };
-            let mut cut = None;
-            for (k, kept) in [below, above].into_iter().enumerate() {
-                let (a_in, b_in) = (kept >> i & 1, kept >> j & 1);
-                if a_in == 1 {
-                    fits[k] &= parts[k].push(*a, self.exact >> i & 1);
+            let exact = self.exact >> i & 1 == 1;
+            for (part, kept) in parts.iter_mut().zip([below, above]) {
+                if kept >> i & 1 == 1 {
+                    grow_corner(part, *a, exact, scale);
                 }
-                if a_in != b_in {
-                    let p = *cut.get_or_insert_with(|| crossing(a, &corners[j], axis, plane));
-                    fits[k] &= parts[k].push(p, 0);
+            }
+            let cuts = |kept: u32| (kept >> i & 1) != (kept >> j & 1);
+            let (cuts_below, cuts_above) = (cuts(below), cuts(above));
+            if cuts_below || cuts_above {
+                let p = crossing(a, &corners[j], axis, plane);
+                for (part, cut) in parts.iter_mut().zip([cuts_below, cuts_above]) {
+                    if cut {
+                        grow_corner(part, p, false, scale);
+                    }
                 }
             }
         }
-        let [below_part, above_part] = parts;
-        [fits[0].then_some(below_part), fits[1].then_some(above_part)]
+        parts
     }
 
     /// The part inside `cell`, clipping only by the faces that cut `whole`, the bounds
@@ -176,17 +163,24 @@ impl Polygon {
         }
         let mut b = Aabb::EMPTY;
         for (i, &p) in self.corners[..self.len].iter().enumerate() {
-            let p = Vec3::from_array(p);
-            if self.exact >> i & 1 == 1 {
-                b.grow(p);
-            } else {
-                let widen = p.abs().max(scale) * CLIP_SLACK;
-                b.grow(p - widen);
-                b.grow(p + widen);
-            }
+            grow_corner(&mut b, p, self.exact >> i & 1 == 1, scale);
         }
         let b = intersect_boxes(&b, cell);
         (!b.is_empty()).then_some(b)
+    }
+}
+
+/// Grows `b` by corner `p`: exactly when it is one of the triangle's own (`exact`), else
+/// widened by a few ulps of `scale`, the triangle's largest coordinate.
+#[inline]
+fn grow_corner(b: &mut Aabb, p: [f32; 3], exact: bool, scale: Vec3) {
+    let p = Vec3::from_array(p);
+    if exact {
+        b.grow(p);
+    } else {
+        let widen = p.abs().max(scale) * CLIP_SLACK;
+        b.grow(p - widen);
+        b.grow(p + widen);
     }
 }
 
@@ -242,13 +236,14 @@ pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Op
     let (left_cell, right_cell) = child_cells(cell, axis, pos);
     let parts = Polygon::triangle(tri)
         .clip_to_cell(&whole, cell)
-        .map_or([None, None], |p| p.split(axis, pos));
+        .map_or([Aabb::EMPTY; 2], |p| p.split_bounds(axis, pos, scale));
     let mut bounds = [None; 2];
     for ((b, part), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
         *b = if contains(&child, &whole) {
             Some(whole)
         } else {
-            part.and_then(|p| p.bounds_in(scale, &child))
+            Some(intersect_boxes(part, &child))
+                .filter(|b| !b.is_empty())
                 .or_else(|| overlap_fallback(tri, &whole, &child))
         };
     }
@@ -270,18 +265,46 @@ pub fn split_triangle_within(
     let whole = triangle_bounds(&tri);
     let scale = whole.min.abs().max(whole.max.abs());
     let (left_cell, right_cell) = child_cells(cell, axis, pos);
-    let parts = Polygon::triangle(tri).split(axis, pos);
+    let parts = split_triangle_bounds(&tri, axis, pos, scale);
     let mut bounds = [None; 2];
     for ((b, side), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
         let region = intersect_boxes(part, &child);
         if region.is_empty() {
             continue;
         }
-        *b = side
-            .and_then(|p| p.bounds_in(scale, &region))
+        *b = Some(intersect_boxes(side, &region))
+            .filter(|b| !b.is_empty())
             .or_else(|| overlap_fallback(tri, &whole, &region));
     }
     bounds
+}
+
+/// [`Polygon::split_bounds`] of a whole triangle (every corner its own), unrolled for its
+/// three corners: the same bounds without the polygon's corner loop.
+#[inline]
+fn split_triangle_bounds(tri: &[Vec3; 3], axis: usize, plane: f32, scale: Vec3) -> [Aabb; 2] {
+    let below = tri.map(|p| p[axis] <= plane);
+    let above = tri.map(|p| p[axis] >= plane);
+    let mut parts = [Aabb::EMPTY; 2];
+    for i in 0..3 {
+        let j = if i == 2 { 0 } else { i + 1 };
+        if below[i] {
+            parts[0].grow(tri[i]);
+        }
+        if above[i] {
+            parts[1].grow(tri[i]);
+        }
+        let (cuts_below, cuts_above) = (below[i] != below[j], above[i] != above[j]);
+        if cuts_below || cuts_above {
+            let p = crossing(&tri[i].to_array(), &tri[j].to_array(), axis, plane);
+            for (part, cut) in parts.iter_mut().zip([cuts_below, cuts_above]) {
+                if cut {
+                    grow_corner(part, p, false, scale);
+                }
+            }
+        }
+    }
+    parts
 }
 
 /// Akenine-Moller's triangle/box overlap test (2001): the separating axis theorem over

@@ -5,9 +5,12 @@
 //!   through a primitive's bounds is priced. The reference.
 //! - `fast` (`binned.rs`, the default): min-max binning of the SAH (Shevtsov, Soupikov &
 //!   Kapustin, "Highly parallel fast kd-tree construction for interactive ray tracing
-//!   of dynamic scenes", 2007) for large nodes, parallel over primitives at the top;
-//!   below [`BuildParams::sweep_below`] primitives a node's events are made and sorted
-//!   and the exact sweep finishes its subtree.
+//!   of dynamic scenes", 2007) down to 48 references, parallel over primitives at the
+//!   top, with the bin count shrinking with the node; below that, small nodes
+//!   (`small.rs`) price every candidate plane by vector counting. Below
+//!   [`BuildParams::sweep_below`] primitives (the small-node size unless set higher),
+//!   or where no bin boundary beats a leaf, a node's events are made and sorted and
+//!   the exact sweep finishes its subtree.
 //! - Both use perfect splits ([`clip`]): a straddler's bounds in each child are those of
 //!   its part inside the child. Spheres use the squared-distance test, boxes their
 //!   intersection with the child.
@@ -98,8 +101,10 @@ pub struct BuildParams {
     pub parallel_min_prims: u32,
     /// Which builder makes the tree (both keep every other parameter's meaning).
     pub builder: BuilderKind,
-    /// The fast builder hands a node with fewer primitives than this to the exact sweep
-    /// (perf/kdtree.md, "Fast build", measures where binning stops paying).
+    /// The fast builder hands a node with fewer primitives than this to the exact sweep.
+    /// The default, 48, is the small-node size, so binning goes down to the small nodes
+    /// and the sweep only takes nodes that binning cannot split (perf/kdtree.md, "Fast
+    /// build, second round", measures the choice).
     pub sweep_below: u32,
 }
 
@@ -113,7 +118,7 @@ impl Default for BuildParams {
             parallel: true,
             parallel_min_prims: 4096,
             builder: BuilderKind::Fast,
-            sweep_below: 4096,
+            sweep_below: 48,
         }
     }
 }
@@ -233,6 +238,14 @@ fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
     (b.min.is_finite() && b.max.is_finite() && !b.is_empty()).then_some(b)
 }
 
+/// Maps a float to a `u32` with the same order (negative values flipped): the sweep's
+/// event keys and the small nodes' plane keys.
+#[inline]
+fn order_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 1 << 31 }
+}
+
 /// The cells on either side of the plane `pos` on `axis`.
 fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
     let (mut left, mut right) = (*cell, *cell);
@@ -260,6 +273,7 @@ struct PlaneCost {
 
 impl PlaneCost {
     /// `None` when the cell has no area (or a NaN one).
+    #[inline]
     fn new(cell: &Aabb, axis: usize, params: &BuildParams) -> Option<PlaneCost> {
         let e = cell.max - cell.min;
         let area = e.x * e.y + e.y * e.z + e.z * e.x;

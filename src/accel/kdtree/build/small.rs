@@ -2,32 +2,40 @@
 //!
 //! Most of a tree's nodes are tiny (Sponza: 0.8M of its 1.05M nodes hold fewer than 16
 //! references). Below [`SMALL`] references a node keeps its references' bounds in
-//! fixed arrays, one per axis and side (padding NaN, which compares false), and prices
-//! each candidate plane, every reference's minimum and maximum strictly inside the
-//! cell, by counting the references left of it, right of it and lying in it: the
-//! counts the sweep has at that plane, priced with the same [`PlaneCost`], in loops over
-//! fixed-size chunks that compile to vector compares. The cheapest plane wins, ties
-//! going to the lower axis, then the lower position, as in the sweep, so a small node
-//! splits exactly as the sweep would split it, without sorted lists to keep. The work
-//! grows as n^2 per node: past about 12 references the sweep is cheaper (perf/kdtree.md,
-//! "Fast build"). A straddling triangle is cut by the split plane alone and its sides
-//! met with its bounds in the cell ([`Builder::split_within`]): a little looser than
-//! clipping it to the cell first, and cheaper.
+//! fixed arrays, per axis each reference's minimum and maximum side by side (padding
+//! NaN, which compares false), and prices each candidate plane, every reference's
+//! minimum and maximum strictly inside the cell, by counting the references left of
+//! it, right of it and lying in it: the counts the sweep has at that plane, priced with
+//! the same [`PlaneCost`]. The counting runs over the candidates 16 at a time, one
+//! reference after another (vector compares), and the pricing and the search for the
+//! cheapest over the same chunks, so a node prices only the chunks its references fill.
+//! The cheapest plane wins, ties going to the lower axis, then the lower position, as
+//! in the sweep. The work grows as n^2 per node, but in vectors: up to 48 references it
+//! is cheaper than keeping sorted lists (perf/kdtree.md, "Fast build, second round"). A
+//! straddling triangle is cut by the split plane alone and its sides met with its
+//! bounds in the cell ([`Builder::split_within`]): a little looser than clipping it to
+//! the cell first, and cheaper.
 
-use super::{Builder, Out, PlaneCost, child_cells};
+use super::{Builder, Out, PlaneCost, child_cells, order_bits};
 use crate::scene::Aabb;
 
 /// Most references a small node holds.
-pub(super) const SMALL: usize = 12;
+pub(super) const SMALL: usize = 48;
 
-/// Lanes of one counting chunk.
-const CHUNK: usize = 4;
+/// Candidate planes of one axis of a small node: every reference's minimum and maximum
+/// (NaN past the node's references, which prices as no plane).
+const CANDIDATES: usize = 2 * SMALL;
 
-/// A small node's references: bounds per axis in fixed arrays, NaN past `len`.
+/// Candidates counted and priced together: one 512-bit vector of `f32`.
+const LANES: usize = 16;
+
+/// A small node's references: per axis, reference `i`'s minimum in `lim[axis][2 i]` and
+/// maximum in `lim[axis][2 i + 1]`, so the node's candidate planes are the first
+/// `2 len` entries and a node of few references prices only the chunks it fills; NaN
+/// past them.
 #[derive(Clone, Copy)]
 pub(super) struct SmallNode {
-    min: [[f32; SMALL]; 3],
-    max: [[f32; SMALL]; 3],
+    lim: [[f32; CANDIDATES]; 3],
     prim: [u32; SMALL],
     len: usize,
 }
@@ -35,8 +43,7 @@ pub(super) struct SmallNode {
 impl SmallNode {
     pub(super) fn new() -> SmallNode {
         SmallNode {
-            min: [[f32::NAN; SMALL]; 3],
-            max: [[f32::NAN; SMALL]; 3],
+            lim: [[f32::NAN; CANDIDATES]; 3],
             prim: [0; SMALL],
             len: 0,
         }
@@ -47,8 +54,8 @@ impl SmallNode {
     pub(super) fn push(&mut self, bounds: &Aabb, prim: u32) {
         let i = self.len;
         for axis in 0..3 {
-            self.min[axis][i] = bounds.min[axis];
-            self.max[axis][i] = bounds.max[axis];
+            self.lim[axis][2 * i] = bounds.min[axis];
+            self.lim[axis][2 * i + 1] = bounds.max[axis];
         }
         self.prim[i] = prim;
         self.len += 1;
@@ -58,10 +65,10 @@ impl SmallNode {
     #[inline]
     pub(super) fn set(&mut self, slot: usize, axis: usize, min: Option<f32>, max: Option<f32>) {
         if let Some(x) = min {
-            self.min[axis][slot] = x;
+            self.lim[axis][2 * slot] = x;
         }
         if let Some(x) = max {
-            self.max[axis][slot] = x;
+            self.lim[axis][2 * slot + 1] = x;
         }
     }
 
@@ -77,30 +84,106 @@ impl SmallNode {
     fn bounds(&self, i: usize) -> Aabb {
         let mut b = Aabb::EMPTY;
         for axis in 0..3 {
-            b.min[axis] = self.min[axis][i];
-            b.max[axis] = self.max[axis][i];
+            b.min[axis] = self.lim[axis][2 * i];
+            b.max[axis] = self.lim[axis][2 * i + 1];
         }
         b
     }
 
-    /// On `axis`, the references that start left of `p`, end right of it, and lie in it.
+    /// The cheapest plane on `axis` as `(cost, position, planar_left)`, ties going to
+    /// the lower position; `cost` is infinite when no candidate lies strictly inside the
+    /// cell. For each reference the counts of every candidate are updated in one loop
+    /// over the candidates (vector compares), then every candidate is priced in a second
+    /// loop: the same counts and costs as pricing one candidate at a time.
     #[inline]
-    fn counts(&self, axis: usize, p: f32) -> [u32; 3] {
-        let chunks = self.len.div_ceil(CHUNK);
-        let (min, max) = (&self.min[axis], &self.max[axis]);
-        let mut left = [0u32; CHUNK];
-        let mut right = [0u32; CHUNK];
-        let mut planar = [0u32; CHUNK];
+    fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32, bool) {
+        let cand = &self.lim[axis];
+        let chunks = (2 * self.len).div_ceil(LANES);
+        let mut left = [0u32; CANDIDATES];
+        let mut right = [0u32; CANDIDATES];
+        let mut planar = [0u32; CANDIDATES];
+        let counts = (&mut left, &mut right, &mut planar);
+        match chunks {
+            1 => count::<1>(cand, self.len, counts),
+            2 => count::<2>(cand, self.len, counts),
+            3 => count::<3>(cand, self.len, counts),
+            4 => count::<4>(cand, self.len, counts),
+            5 => count::<5>(cand, self.len, counts),
+            _ => count::<{ CANDIDATES / LANES }>(cand, self.len, counts),
+        }
+        // Each candidate's cost and position as one integer key (costs and positions
+        // order like their `order_bits`), so the cheapest, then lowest, is a vector
+        // minimum; a candidate outside the cell gets the largest key.
+        let mut keys = [u64::MAX; CANDIDATES];
+        let mut least = [u64::MAX; LANES];
         for c in 0..chunks {
-            let lo: &[f32; CHUNK] = min[c * CHUNK..][..CHUNK].try_into().expect("chunk");
-            let hi: &[f32; CHUNK] = max[c * CHUNK..][..CHUNK].try_into().expect("chunk");
-            for l in 0..CHUNK {
-                left[l] += (lo[l] < p) as u32;
-                right[l] += (hi[l] > p) as u32;
-                planar[l] += (lo[l] == p && hi[l] == p) as u32;
+            let j = c * LANES;
+            let p: &[f32; LANES] = cand[j..][..LANES].try_into().expect("chunk");
+            let (l, r, pl) = (
+                &left[j..][..LANES],
+                &right[j..][..LANES],
+                &planar[j..][..LANES],
+            );
+            let k: &mut [u64; LANES] = (&mut keys[j..][..LANES]).try_into().expect("chunk");
+            for i in 0..LANES {
+                let p = p[i] + 0.0;
+                let prob = pricing.probabilities(p);
+                let with_left = pricing.cost(prob, l[i] + pl[i], r[i]);
+                let with_right = pricing.cost(prob, l[i], r[i] + pl[i]);
+                let c = if with_left < with_right {
+                    with_left
+                } else {
+                    with_right
+                };
+                let key = (order_bits(c) as u64) << 32 | order_bits(p) as u64;
+                k[i] = if p > pricing.lo && p < pricing.hi {
+                    key
+                } else {
+                    u64::MAX
+                };
+                least[i] = least[i].min(k[i]);
             }
         }
-        [left, right, planar].map(|a| a.iter().sum())
+        let best = least.iter().fold(u64::MAX, |a, &k| a.min(k));
+        if best == u64::MAX {
+            return (f32::INFINITY, f32::INFINITY, false);
+        }
+        let j = keys.iter().position(|&k| k == best).unwrap_or(0);
+        let p = cand[j] + 0.0;
+        let prob = pricing.probabilities(p);
+        let with_left = pricing.cost(prob, left[j] + planar[j], right[j]);
+        let with_right = pricing.cost(prob, left[j], right[j] + planar[j]);
+        let best_left = with_left < with_right;
+        let best_cost = if best_left { with_left } else { with_right };
+        (best_cost, p, best_left)
+    }
+}
+
+/// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
+/// per candidate, the references starting left of it, ending right of it and lying in
+/// it. `C` is a constant so the chunks and their counts stay in vector registers while
+/// the references go by.
+#[inline]
+fn count<const C: usize>(
+    cand: &[f32; CANDIDATES],
+    len: usize,
+    (left, right, planar): (
+        &mut [u32; CANDIDATES],
+        &mut [u32; CANDIDATES],
+        &mut [u32; CANDIDATES],
+    ),
+) {
+    for i in 0..len {
+        let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
+        for j in 0..C * LANES {
+            left[j] += (lo < cand[j]) as u32;
+            right[j] += (hi > cand[j]) as u32;
+        }
+        if lo == hi {
+            for j in 0..C * LANES {
+                planar[j] += (lo == cand[j]) as u32;
+            }
+        }
     }
 }
 
@@ -138,7 +221,7 @@ impl Builder<'_> {
         };
         let mut kids = [SmallNode::new(), SmallNode::new()];
         for i in 0..node.len {
-            let (lo, hi) = (node.min[axis][i], node.max[axis][i]);
+            let (lo, hi) = (node.lim[axis][2 * i], node.lim[axis][2 * i + 1]);
             let prim = node.prim[i];
             let to = if lo == hi {
                 if lo < pos || (lo == pos && planar_left) {
@@ -167,39 +250,21 @@ impl Builder<'_> {
         self.build_small(right_cell, &kids[1], depth + 1, first + 1, out);
     }
 
-    /// The cheapest plane of a small node if it beats a leaf (see the module doc).
+    /// The cheapest plane of a small node if it beats a leaf (see the module doc); a
+    /// later axis must be strictly cheaper to win.
     fn small_plane(&self, cell: &Aabb, node: &SmallNode) -> Option<Plane> {
         let mut best = None;
         let mut best_cost = self.params.intersection_cost * node.len as f32;
-        let mut best_pos = f32::INFINITY;
         for axis in 0..3 {
             let pricing = PlaneCost::new(cell, axis, self.params)?;
-            let (lo, hi) = (pricing.lo, pricing.hi);
-            let candidates = node.min[axis][..node.len]
-                .iter()
-                .chain(&node.max[axis][..node.len]);
-            let mut axis_best = false;
-            for &c in candidates {
-                let p = c + 0.0;
-                if !(p > lo && p < hi) {
-                    continue;
-                }
-                let [n_left, n_right, planars] = node.counts(axis, p);
-                let prob = pricing.probabilities(p);
-                let with_left = pricing.cost(prob, n_left + planars, n_right);
-                let with_right = pricing.cost(prob, n_left, n_right + planars);
-                let planar_left = with_left < with_right;
-                let cost = if planar_left { with_left } else { with_right };
-                if cost < best_cost || (cost == best_cost && axis_best && p < best_pos) {
-                    best_cost = cost;
-                    best_pos = p;
-                    axis_best = true;
-                    best = Some(Plane {
-                        axis,
-                        pos: p,
-                        planar_left,
-                    });
-                }
+            let (cost, pos, planar_left) = node.best_on_axis(axis, &pricing);
+            if cost < best_cost {
+                best_cost = cost;
+                best = Some(Plane {
+                    axis,
+                    pos,
+                    planar_left,
+                });
             }
         }
         best

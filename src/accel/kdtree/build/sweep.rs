@@ -17,20 +17,13 @@
 //!   once the buffers have their size.
 
 use super::small::{SMALL, SmallNode};
-use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells};
+use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells, order_bits};
 use crate::accel::kdtree::node::MAX_INDEX;
 use crate::scene::Aabb;
 
 const END: u64 = 0;
 const PLANAR: u64 = 1;
 const START: u64 = 2;
-
-/// Maps a float to a `u32` with the same order (negative values flipped).
-#[inline]
-fn order_bits(x: f32) -> u32 {
-    let b = x.to_bits();
-    if b >> 31 == 1 { !b } else { b | 1 << 31 }
-}
 
 #[inline]
 fn from_order_bits(o: u32) -> f32 {
