@@ -74,10 +74,11 @@ pub struct TreeArgs {
     #[arg(long, default_value_t = BuildParams::default().empty_bonus)]
     pub empty_bonus: f32,
     /// The kd-tree builder: exact (Wald & Havran's sweep at every node, the reference)
-    /// or fast (binned SAH for large nodes, the sweep below --sweep-below primitives).
+    /// or fast (binned SAH down to --sweep-below primitives, then vectorised exact
+    /// pricing of small nodes; the default).
     #[arg(long, default_value_t = BuilderKind::default(), value_parser = parse_builder)]
     pub builder: BuilderKind,
-    /// The fast builder's switch to the exact sweep, in primitives per node.
+    /// The fast builder's switch from binning to exact pricing, in primitives per node.
     #[arg(long, default_value_t = BuildParams::default().sweep_below)]
     pub sweep_below: u32,
 }
