@@ -246,6 +246,12 @@ fn order_bits(x: f32) -> u32 {
     if b >> 31 == 1 { !b } else { b | 1 << 31 }
 }
 
+/// The float whose [`order_bits`] are `o`.
+#[inline]
+fn from_order_bits(o: u32) -> f32 {
+    f32::from_bits(if o >> 31 == 1 { o & !(1 << 31) } else { !o })
+}
+
 /// The cells on either side of the plane `pos` on `axis`.
 fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
     let (mut left, mut right) = (*cell, *cell);
