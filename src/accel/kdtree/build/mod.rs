@@ -310,9 +310,16 @@ impl PlaneCost {
 
     /// The cost of a plane with `probabilities` and `n_left`, `n_right` primitives.
     #[inline]
-    fn cost(&self, [p_left, p_right]: [f32; 2], n_left: u32, n_right: u32) -> f32 {
-        let c = self.k_t + self.k_i * (p_left * n_left as f32 + p_right * n_right as f32);
-        if n_left == 0 || n_right == 0 {
+    fn cost(&self, probabilities: [f32; 2], n_left: u32, n_right: u32) -> f32 {
+        self.cost_of_counts(probabilities, n_left as f32, n_right as f32)
+    }
+
+    /// [`PlaneCost::cost`] with the counts already floats (exact: they stay far below
+    /// 2^24), as the small nodes count them.
+    #[inline]
+    fn cost_of_counts(&self, [p_left, p_right]: [f32; 2], n_left: f32, n_right: f32) -> f32 {
+        let c = self.k_t + self.k_i * (p_left * n_left + p_right * n_right);
+        if n_left == 0.0 || n_right == 0.0 {
             c * self.bonus
         } else {
             c

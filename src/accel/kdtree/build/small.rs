@@ -100,9 +100,9 @@ impl SmallNode {
     fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
         let cand = &self.lim[axis];
         let chunks = (2 * self.len).div_ceil(LANES);
-        let mut left = [0u32; CANDIDATES];
-        let mut right = [0u32; CANDIDATES];
-        let mut planar = [0u32; CANDIDATES];
+        let mut left = [0.0f32; CANDIDATES];
+        let mut right = [0.0f32; CANDIDATES];
+        let mut planar = [0.0f32; CANDIDATES];
         let counts = (&mut left, &mut right, &mut planar);
         match chunks {
             1 => count::<1>(cand, self.len, counts),
@@ -128,8 +128,8 @@ impl SmallNode {
             for i in 0..LANES {
                 let p = p[i] + 0.0;
                 let prob = pricing.probabilities(p);
-                let with_left = pricing.cost(prob, l[i] + pl[i], r[i]);
-                let with_right = pricing.cost(prob, l[i], r[i] + pl[i]);
+                let with_left = pricing.cost_of_counts(prob, l[i] + pl[i], r[i]);
+                let with_right = pricing.cost_of_counts(prob, l[i], r[i] + pl[i]);
                 let c = if with_left < with_right {
                     with_left
                 } else {
@@ -172,27 +172,27 @@ impl SmallNode {
 
 /// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
 /// per candidate, the references starting left of it, ending right of it and lying in
-/// it. `C` is a constant so the chunks and their counts stay in vector registers while
+/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the chunks and their counts stay in vector registers while
 /// the references go by.
 #[inline]
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
     (left, right, planar): (
-        &mut [u32; CANDIDATES],
-        &mut [u32; CANDIDATES],
-        &mut [u32; CANDIDATES],
+        &mut [f32; CANDIDATES],
+        &mut [f32; CANDIDATES],
+        &mut [f32; CANDIDATES],
     ),
 ) {
     for i in 0..len {
         let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
         for j in 0..C * LANES {
-            left[j] += (lo < cand[j]) as u32;
-            right[j] += (hi > cand[j]) as u32;
+            left[j] += if lo < cand[j] { 1.0 } else { 0.0 };
+            right[j] += if hi > cand[j] { 1.0 } else { 0.0 };
         }
         if lo == hi {
             for j in 0..C * LANES {
-                planar[j] += (lo == cand[j]) as u32;
+                planar[j] += if lo == cand[j] { 1.0 } else { 0.0 };
             }
         }
     }
