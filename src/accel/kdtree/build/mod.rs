@@ -246,6 +246,12 @@ fn order_bits(x: f32) -> u32 {
     if b >> 31 == 1 { !b } else { b | 1 << 31 }
 }
 
+/// The float whose [`order_bits`] are `o`.
+#[inline]
+fn from_order_bits(o: u32) -> f32 {
+    f32::from_bits(if o >> 31 == 1 { o & !(1 << 31) } else { !o })
+}
+
 /// The cells on either side of the plane `pos` on `axis`.
 fn child_cells(cell: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
     let (mut left, mut right) = (*cell, *cell);
@@ -304,9 +310,16 @@ impl PlaneCost {
 
     /// The cost of a plane with `probabilities` and `n_left`, `n_right` primitives.
     #[inline]
-    fn cost(&self, [p_left, p_right]: [f32; 2], n_left: u32, n_right: u32) -> f32 {
-        let c = self.k_t + self.k_i * (p_left * n_left as f32 + p_right * n_right as f32);
-        if n_left == 0 || n_right == 0 {
+    fn cost(&self, probabilities: [f32; 2], n_left: u32, n_right: u32) -> f32 {
+        self.cost_of_counts(probabilities, n_left as f32, n_right as f32)
+    }
+
+    /// [`PlaneCost::cost`] with the counts already floats (exact: they stay far below
+    /// 2^24), as the small nodes count them.
+    #[inline]
+    fn cost_of_counts(&self, [p_left, p_right]: [f32; 2], n_left: f32, n_right: f32) -> f32 {
+        let c = self.k_t + self.k_i * (p_left * n_left + p_right * n_right);
+        if n_left == 0.0 || n_right == 0.0 {
             c * self.bonus
         } else {
             c

@@ -16,7 +16,7 @@
 //! bounds in the cell ([`Builder::split_within`]): a little looser than clipping it to
 //! the cell first, and cheaper.
 
-use super::{Builder, Out, PlaneCost, child_cells, order_bits};
+use super::{Builder, Out, PlaneCost, child_cells, from_order_bits, order_bits};
 use crate::scene::Aabb;
 
 /// Most references a small node holds.
@@ -90,18 +90,19 @@ impl SmallNode {
         b
     }
 
-    /// The cheapest plane on `axis` as `(cost, position, planar_left)`, ties going to
-    /// the lower position; `cost` is infinite when no candidate lies strictly inside the
-    /// cell. For each reference the counts of every candidate are updated in one loop
-    /// over the candidates (vector compares), then every candidate is priced in a second
-    /// loop: the same counts and costs as pricing one candidate at a time.
+    /// The cheapest plane on `axis` as `(cost, position)`, ties going to the lower
+    /// position; `cost` is infinite when no candidate lies strictly inside the cell. For
+    /// each reference the counts of every candidate are updated in one loop over the
+    /// candidates (vector compares), then every candidate is priced in a second loop:
+    /// the same counts and costs as pricing one candidate at a time. Which side takes
+    /// the planar references is left to [`SmallNode::planar_left`], for the winner only.
     #[inline]
-    fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32, bool) {
+    fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
         let cand = &self.lim[axis];
         let chunks = (2 * self.len).div_ceil(LANES);
-        let mut left = [0u32; CANDIDATES];
-        let mut right = [0u32; CANDIDATES];
-        let mut planar = [0u32; CANDIDATES];
+        let mut left = [0.0f32; CANDIDATES];
+        let mut right = [0.0f32; CANDIDATES];
+        let mut planar = [0.0f32; CANDIDATES];
         let counts = (&mut left, &mut right, &mut planar);
         match chunks {
             1 => count::<1>(cand, self.len, counts),
@@ -113,8 +114,8 @@ impl SmallNode {
         }
         // Each candidate's cost and position as one integer key (costs and positions
         // order like their `order_bits`), so the cheapest, then lowest, is a vector
-        // minimum; a candidate outside the cell gets the largest key.
-        let mut keys = [u64::MAX; CANDIDATES];
+        // minimum whose bits give back both; a candidate outside the cell gets the
+        // largest key.
         let mut least = [u64::MAX; LANES];
         for c in 0..chunks {
             let j = c * LANES;
@@ -124,64 +125,74 @@ impl SmallNode {
                 &right[j..][..LANES],
                 &planar[j..][..LANES],
             );
-            let k: &mut [u64; LANES] = (&mut keys[j..][..LANES]).try_into().expect("chunk");
             for i in 0..LANES {
                 let p = p[i] + 0.0;
                 let prob = pricing.probabilities(p);
-                let with_left = pricing.cost(prob, l[i] + pl[i], r[i]);
-                let with_right = pricing.cost(prob, l[i], r[i] + pl[i]);
+                let with_left = pricing.cost_of_counts(prob, l[i] + pl[i], r[i]);
+                let with_right = pricing.cost_of_counts(prob, l[i], r[i] + pl[i]);
                 let c = if with_left < with_right {
                     with_left
                 } else {
                     with_right
                 };
                 let key = (order_bits(c) as u64) << 32 | order_bits(p) as u64;
-                k[i] = if p > pricing.lo && p < pricing.hi {
+                let key = if p > pricing.lo && p < pricing.hi {
                     key
                 } else {
                     u64::MAX
                 };
-                least[i] = least[i].min(k[i]);
+                least[i] = least[i].min(key);
             }
         }
         let best = least.iter().fold(u64::MAX, |a, &k| a.min(k));
         if best == u64::MAX {
-            return (f32::INFINITY, f32::INFINITY, false);
+            return (f32::INFINITY, f32::INFINITY);
         }
-        let j = keys.iter().position(|&k| k == best).unwrap_or(0);
-        let p = cand[j] + 0.0;
-        let prob = pricing.probabilities(p);
-        let with_left = pricing.cost(prob, left[j] + planar[j], right[j]);
-        let with_right = pricing.cost(prob, left[j], right[j] + planar[j]);
-        let best_left = with_left < with_right;
-        let best_cost = if best_left { with_left } else { with_right };
-        (best_cost, p, best_left)
+        (
+            from_order_bits((best >> 32) as u32),
+            from_order_bits(best as u32),
+        )
+    }
+
+    /// Whether the references lying in the plane `pos` on `axis` go left: the side
+    /// [`SmallNode::best_on_axis`] priced cheaper (right on a tie), from the counts
+    /// every candidate at `pos` shares.
+    fn planar_left(&self, axis: usize, pos: f32, pricing: &PlaneCost) -> bool {
+        let (mut left, mut right, mut planar) = (0u32, 0u32, 0u32);
+        for i in 0..self.len {
+            let (lo, hi) = (self.lim[axis][2 * i], self.lim[axis][2 * i + 1]);
+            left += (lo < pos) as u32;
+            right += (hi > pos) as u32;
+            planar += (lo == hi && lo == pos) as u32;
+        }
+        let prob = pricing.probabilities(pos);
+        pricing.cost(prob, left + planar, right) < pricing.cost(prob, left, right + planar)
     }
 }
 
 /// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
 /// per candidate, the references starting left of it, ending right of it and lying in
-/// it. `C` is a constant so the chunks and their counts stay in vector registers while
+/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the chunks and their counts stay in vector registers while
 /// the references go by.
 #[inline]
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
     (left, right, planar): (
-        &mut [u32; CANDIDATES],
-        &mut [u32; CANDIDATES],
-        &mut [u32; CANDIDATES],
+        &mut [f32; CANDIDATES],
+        &mut [f32; CANDIDATES],
+        &mut [f32; CANDIDATES],
     ),
 ) {
     for i in 0..len {
         let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
         for j in 0..C * LANES {
-            left[j] += (lo < cand[j]) as u32;
-            right[j] += (hi > cand[j]) as u32;
+            left[j] += if lo < cand[j] { 1.0 } else { 0.0 };
+            right[j] += if hi > cand[j] { 1.0 } else { 0.0 };
         }
         if lo == hi {
             for j in 0..C * LANES {
-                planar[j] += (lo == cand[j]) as u32;
+                planar[j] += if lo == cand[j] { 1.0 } else { 0.0 };
             }
         }
     }
@@ -257,16 +268,17 @@ impl Builder<'_> {
         let mut best_cost = self.params.intersection_cost * node.len as f32;
         for axis in 0..3 {
             let pricing = PlaneCost::new(cell, axis, self.params)?;
-            let (cost, pos, planar_left) = node.best_on_axis(axis, &pricing);
+            let (cost, pos) = node.best_on_axis(axis, &pricing);
             if cost < best_cost {
                 best_cost = cost;
-                best = Some(Plane {
-                    axis,
-                    pos,
-                    planar_left,
-                });
+                best = Some((axis, pos, pricing));
             }
         }
-        best
+        let (axis, pos, pricing) = best?;
+        Some(Plane {
+            axis,
+            pos,
+            planar_left: node.planar_left(axis, pos, &pricing),
+        })
     }
 }

@@ -17,18 +17,15 @@
 //!   once the buffers have their size.
 
 use super::small::{SMALL, SmallNode};
-use super::{Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells, order_bits};
+use super::{
+    Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits,
+};
 use crate::accel::kdtree::node::MAX_INDEX;
 use crate::scene::Aabb;
 
 const END: u64 = 0;
 const PLANAR: u64 = 1;
 const START: u64 = 2;
-
-#[inline]
-fn from_order_bits(o: u32) -> f32 {
-    f32::from_bits(if o >> 31 == 1 { o & !(1 << 31) } else { !o })
-}
 
 /// An event key. `pos + 0.0` turns -0.0 into +0.0 so both zeros are one position.
 #[inline]
