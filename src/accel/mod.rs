@@ -71,9 +71,7 @@ pub trait Accel: Sync {
     /// Closest hits of a tile of up to 64 coherent rays into `out` (same length), misses
     /// as [`Hit::MISS`]; the kd-tree traces them as SIMD groups sharing one entry point.
     fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
-        for (r, h) in rays.iter().zip(out.iter_mut()) {
-            *h = self.intersect(r).unwrap_or(Hit::MISS);
-        }
+        intersect_each(self, rays, out)
     }
 
     /// Bit `i` set when ray `i` of a tile of up to 64 rays is occluded.
@@ -90,23 +88,36 @@ pub trait Accel: Sync {
     /// `rtcIntersect1M`. Each answer is bit for bit [`Accel::intersect`]'s; the work may
     /// be done in any order, so an accelerator can keep several rays in flight.
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
-        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
-        for (r, h) in rays.iter().zip(hits.iter_mut()) {
-            *h = self.intersect(r).unwrap_or(Hit::MISS);
-        }
+        intersect_each(self, rays, hits)
     }
 
     /// Any-hit answers of a stream of unrelated rays into `occluded` (same length, same
     /// order), each [`Accel::occluded`]'s.
     fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
-        assert_eq!(
-            rays.len(),
-            occluded.len(),
-            "occluded_stream: one answer per ray"
-        );
-        for (r, o) in rays.iter().zip(occluded.iter_mut()) {
-            *o = self.occluded(r);
-        }
+        occluded_each(self, rays, occluded)
+    }
+}
+
+/// The stream queries' default, and the reference they are tested against: closest hits
+/// of `rays` one ray at a time through [`Accel::intersect`], misses as [`Hit::MISS`].
+#[inline]
+pub fn intersect_each<A: Accel + ?Sized>(a: &A, rays: &[Ray], hits: &mut [Hit]) {
+    assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+    for (r, h) in rays.iter().zip(hits.iter_mut()) {
+        *h = a.intersect(r).unwrap_or(Hit::MISS);
+    }
+}
+
+/// [`intersect_each`] for any-hit answers, through [`Accel::occluded`].
+#[inline]
+pub fn occluded_each<A: Accel + ?Sized>(a: &A, rays: &[Ray], occluded: &mut [bool]) {
+    assert_eq!(
+        rays.len(),
+        occluded.len(),
+        "occluded_stream: one answer per ray"
+    );
+    for (r, o) in rays.iter().zip(occluded.iter_mut()) {
+        *o = a.occluded(r);
     }
 }
 

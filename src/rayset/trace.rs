@@ -12,7 +12,7 @@
 
 use crate::accel::Mode;
 use crate::accel::kdtree::traverse_tile::TILE_RAYS;
-use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket};
+use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, intersect_each};
 use crate::ray::{Hit, Ray};
 use crate::simd::{MAX_LANES, Uint, W4, W8, W16};
 use rayon::prelude::*;
@@ -74,11 +74,7 @@ impl fmt::Display for Checksum {
 pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, out: &mut [Hit]) {
     assert_eq!(rays.len(), out.len());
     match mode {
-        Mode::Scalar => {
-            for (r, h) in rays.iter().zip(out.iter_mut()) {
-                *h = accel.intersect(r).unwrap_or(Hit::MISS);
-            }
-        }
+        Mode::Scalar => intersect_each(accel, rays, out),
         Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, out),
         Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, out),
         Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, out),

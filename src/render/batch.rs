@@ -5,7 +5,7 @@
 
 use super::counts::RayCounts;
 use crate::accel::packet::RayPacket;
-use crate::accel::{Accel, Mode, PacketTrace, PacketWidth};
+use crate::accel::{Accel, Mode, PacketTrace, PacketWidth, intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
 use crate::simd::{MAX_LANES, W4, W8, W16};
 use glam::Vec3;
@@ -110,9 +110,7 @@ pub fn batch_size(mode: Mode) -> usize {
 /// every other mode. The answers are the same either way.
 pub fn intersect_unrelated(accel: &dyn Accel, mode: Mode, rays: &[Ray], hits: &mut [Hit]) {
     if mode == Mode::Scalar {
-        for (r, h) in rays.iter().zip(hits.iter_mut()) {
-            *h = accel.intersect(r).unwrap_or(Hit::MISS);
-        }
+        intersect_each(accel, rays, hits);
     } else {
         accel.intersect_stream(rays, hits);
     }
@@ -122,9 +120,7 @@ pub fn intersect_unrelated(accel: &dyn Accel, mode: Mode, rays: &[Ray], hits: &m
 /// [`intersect_unrelated`] traces them.
 pub fn occluded_unrelated(accel: &dyn Accel, mode: Mode, rays: &[Ray], occluded: &mut [bool]) {
     if mode == Mode::Scalar {
-        for (r, o) in rays.iter().zip(occluded.iter_mut()) {
-            *o = accel.occluded(r);
-        }
+        occluded_each(accel, rays, occluded);
     } else {
         accel.occluded_stream(rays, occluded);
     }

@@ -74,13 +74,15 @@ pub trait Integrator: Sync {
         counts: &mut GiCounts,
     ) -> Vec3;
 
-    /// [`Integrator::radiance_traced`] for many camera rays at once, `rngs[i]` drawn
-    /// for ray `i`, the same values bit for bit; `mode` says how rays traced together
-    /// go (one by one in scalar mode). The default takes the rays one at a time.
+    /// [`Integrator::radiance_traced`] for many camera rays at once, `first[i]` the
+    /// closest hit of ray `i` ([`Hit::MISS`] for none, as the stream queries write it)
+    /// and `rngs[i]` its generator, the same values bit for bit; `mode` says how rays
+    /// traced together go (one by one in scalar mode). The default takes the rays one
+    /// at a time.
     fn radiance_batch(
         &self,
         rays: &[Ray],
-        first: &[Option<Hit>],
+        first: &[Hit],
         rngs: &mut [Pcg32],
         _mode: Mode,
         counts: &mut GiCounts,
@@ -88,7 +90,7 @@ pub trait Integrator: Sync {
         rays.iter()
             .zip(first)
             .zip(rngs)
-            .map(|((ray, &hit), rng)| self.radiance_traced(ray, hit, rng, counts))
+            .map(|((ray, h), rng)| self.radiance_traced(ray, h.is_hit().then_some(*h), rng, counts))
             .collect()
     }
 
@@ -387,9 +389,7 @@ pub fn render_gi(
                         out.copy_from_slice(&intersect_rays(accel, packet, group)[..group.len()]);
                     }
                 }
-                let first: Vec<Option<Hit>> =
-                    hits.iter().map(|h| h.is_hit().then_some(*h)).collect();
-                let l = integrator.radiance_batch(&rays, &first, &mut rngs, mode, &mut counts);
+                let l = integrator.radiance_batch(&rays, &hits, &mut rngs, mode, &mut counts);
                 for (sum, l) in sums.iter_mut().zip(l) {
                     // A NaN or infinite sample would poison the pixel: drop it.
                     if l.is_finite() {

@@ -197,7 +197,7 @@ impl Integrator for PathTracer<'_> {
     fn radiance_batch(
         &self,
         rays: &[Ray],
-        first: &[Option<Hit>],
+        first: &[Hit],
         rngs: &mut [Pcg32],
         mode: Mode,
         counts: &mut GiCounts,
@@ -206,7 +206,7 @@ impl Integrator for PathTracer<'_> {
         let mut paths: Vec<Path> = rays.iter().map(|r| Path::new(*r)).collect();
         // Live paths and the closest hits of their current rays, in the same order.
         let mut live: Vec<usize> = (0..paths.len()).collect();
-        let mut hits: Vec<Hit> = first.iter().map(|h| h.unwrap_or(Hit::MISS)).collect();
+        let mut hits = first.to_vec();
         let mut camera_vertex = true;
         // The generation's shadow rays, the paths they belong to and their answers.
         let (mut owners, mut shadow_rays, mut point_light) = (Vec::new(), Vec::new(), Vec::new());

@@ -14,7 +14,7 @@
 
 use super::KdTree;
 use super::traverse::Walk;
-use crate::accel::Accel;
+use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
 
 /// Walks in flight per thread (4 gained less on Sponza diffuse, 16 no more).
@@ -35,11 +35,8 @@ impl KdTree {
     /// returns them, misses as [`Hit::MISS`]: interleaved walks, or ray by ray in a tree
     /// of fewer than [`STREAM_MIN_NODES`] nodes.
     pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
-        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
         if self.nodes.len() < STREAM_MIN_NODES {
-            for (r, h) in rays.iter().zip(hits.iter_mut()) {
-                *h = self.intersect(r).unwrap_or(Hit::MISS);
-            }
+            intersect_each(self, rays, hits);
         } else {
             self.intersect_interleaved(rays, hits);
         }
@@ -49,15 +46,8 @@ impl KdTree {
     /// [`crate::accel::Accel::occluded`] returns them, chosen as in
     /// [`KdTree::intersect_stream`].
     pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
-        assert_eq!(
-            rays.len(),
-            occluded.len(),
-            "occluded_stream: one answer per ray"
-        );
         if self.nodes.len() < STREAM_MIN_NODES {
-            for (r, o) in rays.iter().zip(occluded.iter_mut()) {
-                *o = self.occluded(r);
-            }
+            occluded_each(self, rays, occluded);
         } else {
             self.occluded_interleaved(rays, occluded);
         }
