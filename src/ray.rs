@@ -11,8 +11,10 @@ use glam::Vec3;
 /// `prim` of a ray that hit nothing (RAYS.md's miss value).
 pub const NO_HIT: u32 = u32::MAX;
 
-/// A ray segment: points `org + t * dir` for `t_min < t < t_max`.
+/// A ray segment: points `org + t * dir` for `t_min < t < t_max`. `repr(C)`: eight
+/// f32 in the order of [`Ray::as_records`], so packets load rays as whole records.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     /// Origin, the point at `t = 0`.
     pub org: Vec3,
@@ -26,7 +28,23 @@ pub struct Ray {
     pub t_max: f32,
 }
 
+const _: () = assert!(
+    size_of::<Ray>() == 32
+        && std::mem::offset_of!(Ray, dir) == 12
+        && std::mem::offset_of!(Ray, t_min) == 24
+        && std::mem::offset_of!(Ray, t_max) == 28
+);
+
 impl Ray {
+    /// The rays as records of eight f32, `ox oy oz dx dy dz t_min t_max`, without a
+    /// copy: the input of [`crate::simd::Float::transpose8`].
+    #[inline]
+    pub fn as_records(rays: &[Ray]) -> &[[f32; 8]] {
+        // SAFETY: `Ray` is `repr(C)`, 32 bytes of eight f32 at the offsets asserted
+        // above, with no padding, and `[f32; 8]` has the same size and alignment (4).
+        unsafe { std::slice::from_raw_parts(rays.as_ptr().cast::<[f32; 8]>(), rays.len()) }
+    }
+
     /// The segment `org + t * dir`, `t_min < t < t_max`; nothing is checked (see
     /// [`Ray::is_usable`]).
     pub fn new(org: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Self {

@@ -78,6 +78,13 @@ pub trait Float:
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
     /// Lane `i`'s value.
     fn lane(&self, i: usize) -> f32;
+    /// Vector `j` holds field `j` of each record, record `i` in lane `i` (the records
+    /// of a packet's rays, [`crate::ray::Ray::as_records`]); lanes past `records.len()`
+    /// are 0. A transpose, so no bit changes.
+    #[inline]
+    fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
+        transpose8_lanes(records)
+    }
     /// `self < o` per lane (false where either is NaN, as the scalar `<`).
     fn cmp_lt(self, o: Self) -> Self::Mask;
     /// `self > o` per lane (false where either is NaN).
@@ -110,6 +117,12 @@ pub trait Float:
     fn from_bits(u: Self::U) -> Self;
     /// `if_true` where `mask` is set, `if_false` elsewhere.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
+}
+
+/// [`Float::transpose8`] lane by lane, at any width.
+#[inline]
+pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {
+    std::array::from_fn(|j| F::from_fn(|i| records.get(i).map_or(0.0, |r| r[j])))
 }
 
 /// Per-lane u32 values.
@@ -576,9 +589,76 @@ pub mod avx512 {
         avx!(VBool(_mm512_cmp_ps_mask::<P>(a.0, b.0)))
     }
 
+    /// `_mm512_permutex2var_ps` indices of the three rounds of [`F32x16::transpose8`]:
+    /// round 1 joins 2+2 records into 4 records x 4 fields (lane = field * 4 + record),
+    /// round 2 joins 4+4 into 8 records x 2 fields, round 3 8+8 into 16 records x 1
+    /// field; `part` picks which fields of the inputs an output keeps. Index bit 4
+    /// selects the second input.
+    const fn transpose_index(round: usize, part: usize) -> [i32; 16] {
+        let mut idx = [0; 16];
+        let mut l = 0;
+        while l < 16 {
+            let (per_field, fields_in) = match round {
+                1 => (4, 8),
+                2 => (8, 4),
+                _ => (16, 2),
+            };
+            let (r, f) = (l % per_field, l / per_field);
+            let half = per_field / 2;
+            let (src, r) = if r < half { (0, r) } else { (16, r - half) };
+            let field = part * (16 / per_field) + f;
+            // Round 1's inputs are record-major (2 records of 8 fields), later rounds'
+            // field-major (`half` records per field).
+            idx[l] = src
+                + if round == 1 {
+                    r * fields_in + field
+                } else {
+                    field * half + r
+                } as i32;
+            l += 1;
+        }
+        idx
+    }
+
+    static TRANSPOSE: [[i32; 16]; 6] = [
+        transpose_index(1, 0),
+        transpose_index(1, 1),
+        transpose_index(2, 0),
+        transpose_index(2, 1),
+        transpose_index(3, 0),
+        transpose_index(3, 1),
+    ];
+
     impl Float for F32x16 {
         type Mask = VBool<u16>;
         type U = U32x16;
+        /// Sixteen records: eight loads and 24 two-source permutes instead of 128
+        /// single-lane inserts.
+        #[inline]
+        fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
+            if records.len() != 16 {
+                return super::transpose8_lanes(records);
+            }
+            let base = records.as_ptr().cast::<f32>();
+            // SAFETY: `records` holds 16 * 8 f32, so each of the 8 loads reads 16 f32
+            // inside it (unaligned loads).
+            let z: [__m512; 8] =
+                std::array::from_fn(|k| unsafe { _mm512_loadu_ps(base.add(16 * k)) });
+            // SAFETY: each row of `TRANSPOSE` is 16 i32, read unaligned.
+            let idx = |n: usize| unsafe { _mm512_loadu_si512(TRANSPOSE[n].as_ptr().cast()) };
+            let join = |a: __m512, n: usize, b: __m512| avx!(_mm512_permutex2var_ps(a, idx(n), b));
+            // b[m][p]: records 4m..4m+4, fields 4p..4p+4.
+            let b: [[__m512; 2]; 4] =
+                std::array::from_fn(|m| [0, 1].map(|p| join(z[2 * m], p, z[2 * m + 1])));
+            // c[q][p][s]: records 8q..8q+8, fields 4p+2s..4p+2s+2.
+            let c: [[[__m512; 2]; 2]; 2] = std::array::from_fn(|q| {
+                [0, 1].map(|p| [0, 1].map(|s| join(b[2 * q][p], 2 + s, b[2 * q + 1][p])))
+            });
+            std::array::from_fn(|j| {
+                let (p, s, t) = (j / 4, (j / 2) % 2, j % 2);
+                F32x16(join(c[0][p][s], 4 + t, c[1][p][s]))
+            })
+        }
         // SAFETY: sixteen f32 fill a `__m512` exactly.
         const ZERO: Self = F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>([0.0; 16]) });
         // SAFETY: as for `ZERO`.
@@ -806,6 +886,40 @@ mod tests {
                 assert_eq!(hi.to_bits(), pick_max(a, b).to_bits(), "max({a:?}, {b:?})");
             }
         }
+    }
+
+    /// `transpose8` puts field `j` of record `i` in lane `i` of vector `j`, bits
+    /// unchanged (NaN payloads and -0.0 included), at every width and for short inputs.
+    fn transpose8_moves_every_bit<W: Simd>() {
+        let records: Vec<[f32; 8]> = (0..W::LANES)
+            .map(|i| {
+                std::array::from_fn(|j| match (i + j) % 5 {
+                    0 => -0.0,
+                    1 => f32::from_bits(0x7fc0_0000 | (i * 8 + j) as u32),
+                    _ => (i * 8 + j) as f32 + 0.25,
+                })
+            })
+            .collect();
+        for n in [W::LANES, W::LANES - 1, 1, 0] {
+            let v = Vf::<W>::transpose8(&records[..n]);
+            for (j, vj) in v.iter().enumerate() {
+                for i in 0..W::LANES {
+                    let want = if i < n { records[i][j] } else { 0.0 };
+                    assert_eq!(
+                        vj.lane(i).to_bits(),
+                        want.to_bits(),
+                        "n {n} lane {i} field {j}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn transpose8_at_every_width() {
+        transpose8_moves_every_bit::<W4>();
+        transpose8_moves_every_bit::<W8>();
+        transpose8_moves_every_bit::<W16>();
     }
 
     /// The native AVX-512 backend repeats `wide`'s f32x16 operation by operation: every

@@ -55,6 +55,19 @@ impl<W: Simd> RayPacket<W> {
             "a packet holds at most {} rays",
             W::LANES
         );
+        if rays.len() == W::LANES {
+            // A full packet: one transpose of the rays' records.
+            let [ox, oy, oz, dx, dy, dz, t_min, t_max] = Vf::<W>::transpose8(Ray::as_records(rays));
+            let dir = [dx, dy, dz];
+            return RayPacket {
+                org: [ox, oy, oz],
+                dir,
+                inv_dir: dir.map(|x| Vf::<W>::ONE / x),
+                t_min,
+                t_max,
+                active: Mask::<W>::from_bits(W::all_bits()),
+            };
+        }
         let get = |i: usize| rays.get(i).unwrap_or(&FILL);
         let org = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).org[a]));
         let dir = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).dir[a]));
