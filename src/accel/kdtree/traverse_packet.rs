@@ -57,7 +57,7 @@ struct Entry<W: Simd> {
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
 /// leaf limit `next_up(best.t)`.
 #[inline]
-fn next_up<F: Float>(v: F) -> F {
+pub(super) fn next_up<F: Float>(v: F) -> F {
     let b = v.to_bits();
     let one = F::U::splat(1);
     let up = F::from_bits(b + one);
