@@ -451,6 +451,14 @@ impl KdTree {
             negative: [false; 3],
         };
         let (mut neg, mut pos) = ([false; 3], [false; 3]);
+        // Lane-wise minima and maxima over the groups, reduced across lanes once at
+        // the end (min and max are exact, so the order does not matter).
+        let (inf, ninf) = (splat(f32::INFINITY), splat(f32::NEG_INFINITY));
+        let (mut o_lo, mut o_hi, mut inv_lo, mut inv_hi) =
+            ([inf; 3], [ninf; 3], [inf; 3], [ninf; 3]);
+        let mut slack_max = [Vf::<W>::ZERO; 3];
+        let (mut t_near_min, mut t_far_max) = (inf, ninf);
+        let select = Vf::<W>::select;
         for (g, p) in groups.iter().enumerate() {
             let (lanes, t_near, t_far) = clip_to_box_packet(&self.bounds, p, actives[g]);
             clips[g] = (lanes, t_near, t_far);
@@ -458,7 +466,6 @@ impl KdTree {
                 continue;
             }
             let o_max = max_abs(&p.org);
-            let live = lanes.bits();
             for a in 0..3 {
                 let d = p.dir[a];
                 neg[a] |= (lanes & d.cmp_lt(Vf::<W>::ZERO)).any();
@@ -469,33 +476,31 @@ impl KdTree {
                     return None;
                 }
                 let slack = (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK) * inv.abs();
-                for_lanes(live, |i| {
-                    b.o_lo[a] = b.o_lo[a].min(p.org[a].lane(i));
-                    b.o_hi[a] = b.o_hi[a].max(p.org[a].lane(i));
-                    b.inv_lo[a] = b.inv_lo[a].min(inv.lane(i));
-                    b.inv_hi[a] = b.inv_hi[a].max(inv.lane(i));
-                    b.slack_max[a] = b.slack_max[a].max(slack.lane(i));
-                });
+                o_lo[a] = o_lo[a].min(select(lanes, p.org[a], inf));
+                o_hi[a] = o_hi[a].max(select(lanes, p.org[a], ninf));
+                inv_lo[a] = inv_lo[a].min(select(lanes, inv, inf));
+                inv_hi[a] = inv_hi[a].max(select(lanes, inv, ninf));
+                slack_max[a] = slack_max[a].max(select(lanes, slack, Vf::<W>::ZERO));
             }
-            for_lanes(live, |i| {
-                b.t_near_min = b.t_near_min.min(t_near.lane(i));
-                b.t_far_max = b.t_far_max.max(t_far.lane(i));
-            });
+            t_near_min = t_near_min.min(select(lanes, t_near, inf));
+            t_far_max = t_far_max.max(select(lanes, t_far, ninf));
         }
+        let lanes_min = |v: Vf<W>| (0..W::LANES).fold(f32::INFINITY, |m, i| m.min(v.lane(i)));
+        let lanes_max = |v: Vf<W>, init: f32| (0..W::LANES).fold(init, |m, i| m.max(v.lane(i)));
+        for a in 0..3 {
+            b.o_lo[a] = lanes_min(o_lo[a]);
+            b.o_hi[a] = lanes_max(o_hi[a], f32::NEG_INFINITY);
+            b.inv_lo[a] = lanes_min(inv_lo[a]);
+            b.inv_hi[a] = lanes_max(inv_hi[a], f32::NEG_INFINITY);
+            b.slack_max[a] = lanes_max(slack_max[a], 0.0);
+        }
+        b.t_near_min = lanes_min(t_near_min);
+        b.t_far_max = lanes_max(t_far_max, f32::NEG_INFINITY);
         if (0..3).any(|a| neg[a] && pos[a]) {
             return None;
         }
         b.negative = neg;
         Some((clips, b))
-    }
-}
-
-/// Calls `f` with the index of each set bit of `bits`.
-#[inline]
-fn for_lanes(mut bits: u32, mut f: impl FnMut(usize)) {
-    while bits != 0 {
-        f(bits.trailing_zeros() as usize);
-        bits &= bits - 1;
     }
 }
 
