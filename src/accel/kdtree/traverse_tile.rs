@@ -452,7 +452,8 @@ impl KdTree {
         };
         let (mut neg, mut pos) = ([false; 3], [false; 3]);
         // Lane-wise minima and maxima over the groups, reduced across lanes once at
-        // the end (min and max are exact, so the order does not matter).
+        // the end (min and max are exact, so the order does not matter; no live lane
+        // holds a NaN, so one `minps`/`maxps` each).
         let (inf, ninf) = (splat(f32::INFINITY), splat(f32::NEG_INFINITY));
         let (mut o_lo, mut o_hi, mut inv_lo, mut inv_hi) =
             ([inf; 3], [ninf; 3], [inf; 3], [ninf; 3]);
@@ -476,14 +477,14 @@ impl KdTree {
                     return None;
                 }
                 let slack = (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK) * inv.abs();
-                o_lo[a] = o_lo[a].min(select(lanes, p.org[a], inf));
-                o_hi[a] = o_hi[a].max(select(lanes, p.org[a], ninf));
-                inv_lo[a] = inv_lo[a].min(select(lanes, inv, inf));
-                inv_hi[a] = inv_hi[a].max(select(lanes, inv, ninf));
-                slack_max[a] = slack_max[a].max(select(lanes, slack, Vf::<W>::ZERO));
+                o_lo[a] = o_lo[a].min_lt(select(lanes, p.org[a], inf));
+                o_hi[a] = o_hi[a].max_gt(select(lanes, p.org[a], ninf));
+                inv_lo[a] = inv_lo[a].min_lt(select(lanes, inv, inf));
+                inv_hi[a] = inv_hi[a].max_gt(select(lanes, inv, ninf));
+                slack_max[a] = slack_max[a].max_gt(select(lanes, slack, Vf::<W>::ZERO));
             }
-            t_near_min = t_near_min.min(select(lanes, t_near, inf));
-            t_far_max = t_far_max.max(select(lanes, t_far, ninf));
+            t_near_min = t_near_min.min_lt(select(lanes, t_near, inf));
+            t_far_max = t_far_max.max_gt(select(lanes, t_far, ninf));
         }
         let lanes_min = |v: Vf<W>| (0..W::LANES).fold(f32::INFINITY, |m, i| m.min(v.lane(i)));
         let lanes_max = |v: Vf<W>, init: f32| (0..W::LANES).fold(init, |m, i| m.max(v.lane(i)));
