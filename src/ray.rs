@@ -88,8 +88,10 @@ pub const DIR_MIN: f32 = 1.0 / (1u64 << 63) as f32 / 2.0;
 pub const DIR_MAX: f32 = (1u64 << 63) as f32 * 2.0;
 
 /// A ray-primitive intersection. `u`, `v` are barycentric weights of a triangle's
-/// second and third vertex (zero for other primitives).
+/// second and third vertex (zero for other primitives). `repr(C)`: four 4-byte words, so
+/// packets store their hits as whole records ([`Hit::as_records_mut`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Hit {
     /// Ray parameter of the hit point, in multiples of the ray's `dir`; `+inf` on a miss.
     pub t: f32,
@@ -101,7 +103,24 @@ pub struct Hit {
     pub prim: u32,
 }
 
+const _: () = assert!(
+    size_of::<Hit>() == 16
+        && std::mem::offset_of!(Hit, u) == 4
+        && std::mem::offset_of!(Hit, v) == 8
+        && std::mem::offset_of!(Hit, prim) == 12
+);
+
 impl Hit {
+    /// The hits as records of four f32 words, `t u v prim` (`prim`'s bits as an f32),
+    /// without a copy: the output of [`crate::simd::Float::transpose4_into`].
+    #[inline]
+    pub fn as_records_mut(hits: &mut [Hit]) -> &mut [[f32; 4]] {
+        // SAFETY: `Hit` is `repr(C)`, 16 bytes of four 4-byte words at the offsets
+        // asserted above, with no padding, and `[f32; 4]` has the same size and
+        // alignment (4); every bit pattern is valid for both f32 and u32.
+        unsafe { std::slice::from_raw_parts_mut(hits.as_mut_ptr().cast::<[f32; 4]>(), hits.len()) }
+    }
+
     /// The value of a miss: `t = +inf`, `prim = NO_HIT`.
     pub const MISS: Hit = Hit {
         t: f32::INFINITY,

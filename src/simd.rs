@@ -85,6 +85,13 @@ pub trait Float:
     fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
         transpose8_lanes(records)
     }
+    /// The reverse for four fields: record `i` of `out` gets lane `i` of each vector
+    /// (a packet's hits, [`crate::ray::Hit::as_records_mut`]); writes `out.len()`
+    /// records, at most one per lane. No bit changes.
+    #[inline]
+    fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
+        transpose4_lanes(v, out)
+    }
     /// `self < o` per lane (false where either is NaN, as the scalar `<`).
     fn cmp_lt(self, o: Self) -> Self::Mask;
     /// `self > o` per lane (false where either is NaN).
@@ -123,6 +130,14 @@ pub trait Float:
 #[inline]
 pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {
     std::array::from_fn(|j| F::from_fn(|i| records.get(i).map_or(0.0, |r| r[j])))
+}
+
+/// [`Float::transpose4_into`] lane by lane, at any width.
+#[inline]
+pub fn transpose4_lanes<F: Float>(v: [F; 4], out: &mut [[f32; 4]]) {
+    for (i, r) in out.iter_mut().enumerate() {
+        *r = v.map(|x| x.lane(i));
+    }
 }
 
 /// Per-lane u32 values.
@@ -620,6 +635,34 @@ pub mod avx512 {
         idx
     }
 
+    /// `_mm512_permutex2var_ps` indices of [`F32x16::transpose4_into`]: round 1 (`part`
+    /// 0 and 1) interleaves two fields of records `8 * part..8 * part + 8`
+    /// (lane = record * 2 + field), round 2 (`part` 0 to 3) joins two such vectors into
+    /// the four fields of records `4 * part..4 * part + 4`, record-major.
+    const fn store_index(round: usize, part: usize) -> [i32; 16] {
+        let mut idx = [0; 16];
+        let mut l = 0;
+        while l < 16 {
+            idx[l] = if round == 1 {
+                ((l % 2) * 16 + part * 8 + l / 2) as i32
+            } else {
+                let (r, f) = ((part % 2) * 4 + l / 4, l % 4);
+                (if f < 2 { 2 * r + f } else { 16 + 2 * r + f - 2 }) as i32
+            };
+            l += 1;
+        }
+        idx
+    }
+
+    static STORE: [[i32; 16]; 6] = [
+        store_index(1, 0),
+        store_index(1, 1),
+        store_index(2, 0),
+        store_index(2, 1),
+        store_index(2, 2),
+        store_index(2, 3),
+    ];
+
     static TRANSPOSE: [[i32; 16]; 6] = [
         transpose_index(1, 0),
         transpose_index(1, 1),
@@ -658,6 +701,26 @@ pub mod avx512 {
                 let (p, s, t) = (j / 4, (j / 2) % 2, j % 2);
                 F32x16(join(c[0][p][s], 4 + t, c[1][p][s]))
             })
+        }
+        /// Sixteen records: 8 two-source permutes and 4 stores instead of 64 lane
+        /// extractions.
+        #[inline]
+        fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
+            if out.len() != 16 {
+                return super::transpose4_lanes(v, out);
+            }
+            // SAFETY: each row of `STORE` is 16 i32, read unaligned.
+            let idx = |n: usize| unsafe { _mm512_loadu_si512(STORE[n].as_ptr().cast()) };
+            let join = |a: __m512, n: usize, b: __m512| avx!(_mm512_permutex2var_ps(a, idx(n), b));
+            // tu[h], vp[h]: records 8h..8h+8, two fields each.
+            let tu = [0, 1].map(|h| join(v[0].0, h, v[1].0));
+            let vp = [0, 1].map(|h| join(v[2].0, h, v[3].0));
+            let base = out.as_mut_ptr().cast::<f32>();
+            for k in 0..4 {
+                let r = join(tu[k / 2], 2 + k, vp[k / 2]);
+                // SAFETY: `out` holds 16 * 4 f32; store `k` writes f32 16k..16k+16.
+                unsafe { _mm512_storeu_ps(base.add(16 * k), r) };
+            }
         }
         // SAFETY: sixteen f32 fill a `__m512` exactly.
         const ZERO: Self = F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>([0.0; 16]) });
@@ -913,6 +976,35 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `transpose4_into` writes lane `i` of vector `j` to field `j` of record `i`, bits
+    /// unchanged, and leaves records past `out.len()` alone.
+    fn transpose4_moves_every_bit<W: Simd>() {
+        let v: [Vf<W>; 4] = std::array::from_fn(|j| {
+            Vf::<W>::from_fn(|i| match (i + j) % 4 {
+                0 => -0.0,
+                1 => f32::from_bits(0xffc0_0000 | (i * 4 + j) as u32),
+                _ => (i * 4 + j) as f32 + 0.5,
+            })
+        });
+        for n in [W::LANES, W::LANES - 1, 1, 0] {
+            let mut out = vec![[7.0f32; 4]; W::LANES];
+            Vf::<W>::transpose4_into(v, &mut out[..n]);
+            for (i, r) in out.iter().enumerate() {
+                for (j, x) in r.iter().enumerate() {
+                    let want = if i < n { v[j].lane(i) } else { 7.0 };
+                    assert_eq!(x.to_bits(), want.to_bits(), "n {n} record {i} field {j}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn transpose4_at_every_width() {
+        transpose4_moves_every_bit::<W4>();
+        transpose4_moves_every_bit::<W8>();
+        transpose4_moves_every_bit::<W16>();
     }
 
     #[test]

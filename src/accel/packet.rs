@@ -228,6 +228,14 @@ impl<W: Simd> HitPacket<W> {
         }
     }
 
+    /// Lanes `0..out.len()` (at most `W::LANES`) into `out`, lane `i` to `out[i]`: one
+    /// transpose ([`Float::transpose4_into`]).
+    #[inline]
+    pub fn write(&self, out: &mut [Hit]) {
+        let prim = Vf::<W>::from_bits(self.prim);
+        Vf::<W>::transpose4_into([self.t, self.u, self.v, prim], Hit::as_records_mut(out));
+    }
+
     /// Lane `i` as a scalar hit.
     #[inline]
     pub fn lane(&self, i: usize) -> Hit {

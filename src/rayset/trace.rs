@@ -89,10 +89,9 @@ pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, ou
 
 fn intersect_packets<A: Accel + ?Sized, W: PacketWidth>(accel: &A, rays: &[Ray], out: &mut [Hit]) {
     for (group, hg) in rays.chunks(W::LANES).zip(out.chunks_mut(W::LANES)) {
-        let hp = accel.intersect_packet(&RayPacket::<W>::from_rays(group));
-        for (i, h) in hg.iter_mut().enumerate() {
-            *h = hp.lane(i);
-        }
+        accel
+            .intersect_packet(&RayPacket::<W>::from_rays(group))
+            .write(hg);
     }
 }
 

@@ -127,8 +127,8 @@ impl KdTree {
                 }
             }
         }
-        for (i, h) in out.iter_mut().enumerate() {
-            *h = best[i / W::LANES].lane(i % W::LANES);
+        for (g, hits) in out.chunks_mut(W::LANES).enumerate() {
+            best[g].write(hits);
         }
     }
 
