@@ -966,8 +966,8 @@ mod tests {
         for n in [W::LANES, W::LANES - 1, 1, 0] {
             let v = Vf::<W>::transpose8(&records[..n]);
             for (j, vj) in v.iter().enumerate() {
-                for i in 0..W::LANES {
-                    let want = if i < n { records[i][j] } else { 0.0 };
+                for (i, record) in records.iter().enumerate() {
+                    let want = if i < n { record[j] } else { 0.0 };
                     assert_eq!(
                         vj.lane(i).to_bits(),
                         want.to_bits(),
