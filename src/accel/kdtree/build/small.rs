@@ -98,33 +98,34 @@ impl SmallNode {
     /// the planar references is left to [`SmallNode::planar_left`], for the winner only.
     #[inline]
     fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
-        let cand = &self.lim[axis];
-        let chunks = (2 * self.len).div_ceil(LANES);
-        let mut left = [0.0f32; CANDIDATES];
-        let mut right = [0.0f32; CANDIDATES];
-        let mut planar = [0.0f32; CANDIDATES];
-        let counts = (&mut left, &mut right, &mut planar);
-        match chunks {
-            1 => count::<1>(cand, self.len, counts),
-            2 => count::<2>(cand, self.len, counts),
-            3 => count::<3>(cand, self.len, counts),
-            4 => count::<4>(cand, self.len, counts),
-            5 => count::<5>(cand, self.len, counts),
-            _ => count::<{ CANDIDATES / LANES }>(cand, self.len, counts),
+        match (2 * self.len).div_ceil(LANES) {
+            1 => self.best_in_chunks::<1>(axis, pricing),
+            2 => self.best_in_chunks::<2>(axis, pricing),
+            3 => self.best_in_chunks::<3>(axis, pricing),
+            4 => self.best_in_chunks::<4>(axis, pricing),
+            5 => self.best_in_chunks::<5>(axis, pricing),
+            _ => self.best_in_chunks::<{ CANDIDATES / LANES }>(axis, pricing),
         }
+    }
+
+    /// [`SmallNode::best_on_axis`] over the first `C` chunks of candidates, the counts
+    /// in arrays of just those chunks (so a node of few references clears and prices
+    /// only what it fills).
+    #[inline]
+    fn best_in_chunks<const C: usize>(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
+        let cand = &self.lim[axis];
+        let mut left = [[0.0f32; LANES]; C];
+        let mut right = [[0.0f32; LANES]; C];
+        let mut planar = [[0.0f32; LANES]; C];
+        count::<C>(cand, self.len, (&mut left, &mut right, &mut planar));
         // Each candidate's cost and position as one integer key (costs and positions
         // order like their `order_bits`), so the cheapest, then lowest, is a vector
         // minimum whose bits give back both; a candidate outside the cell gets the
         // largest key.
         let mut least = [u64::MAX; LANES];
-        for c in 0..chunks {
-            let j = c * LANES;
-            let p: &[f32; LANES] = cand[j..][..LANES].try_into().expect("chunk");
-            let (l, r, pl) = (
-                &left[j..][..LANES],
-                &right[j..][..LANES],
-                &planar[j..][..LANES],
-            );
+        for c in 0..C {
+            let p: &[f32; LANES] = cand[c * LANES..][..LANES].try_into().expect("chunk");
+            let (l, r, pl) = (&left[c], &right[c], &planar[c]);
             for i in 0..LANES {
                 let p = p[i] + 0.0;
                 let prob = pricing.probabilities(p);
@@ -172,18 +173,23 @@ impl SmallNode {
 
 /// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
 /// per candidate, the references starting left of it, ending right of it and lying in
-/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the chunks and their counts stay in vector registers while
-/// the references go by.
+/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the
+/// chunks and their counts stay in vector registers while the references go by.
 #[inline]
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
     (left, right, planar): (
-        &mut [f32; CANDIDATES],
-        &mut [f32; CANDIDATES],
-        &mut [f32; CANDIDATES],
+        &mut [[f32; LANES]; C],
+        &mut [[f32; LANES]; C],
+        &mut [[f32; LANES]; C],
     ),
 ) {
+    let (left, right, planar) = (
+        left.as_flattened_mut(),
+        right.as_flattened_mut(),
+        planar.as_flattened_mut(),
+    );
     for i in 0..len {
         let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
         for j in 0..C * LANES {
