@@ -114,9 +114,9 @@ impl SmallNode {
     #[inline]
     fn best_in_chunks<const C: usize>(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
         let cand = &self.lim[axis];
-        let mut left = [[0.0f32; LANES]; C];
-        let mut right = [[0.0f32; LANES]; C];
-        let mut planar = [[0.0f32; LANES]; C];
+        let mut left: Counts<C> = [[0.0; LANES]; C];
+        let mut right: Counts<C> = [[0.0; LANES]; C];
+        let mut planar: Counts<C> = [[0.0; LANES]; C];
         count::<C>(cand, self.len, (&mut left, &mut right, &mut planar));
         // Each candidate's cost and position as one integer key (costs and positions
         // order like their `order_bits`), so the cheapest, then lowest, is a vector
@@ -171,6 +171,9 @@ impl SmallNode {
     }
 }
 
+/// One count per candidate of `C` chunks.
+type Counts<const C: usize> = [[f32; LANES]; C];
+
 /// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
 /// per candidate, the references starting left of it, ending right of it and lying in
 /// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the
@@ -179,11 +182,7 @@ impl SmallNode {
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
-    (left, right, planar): (
-        &mut [[f32; LANES]; C],
-        &mut [[f32; LANES]; C],
-        &mut [[f32; LANES]; C],
-    ),
+    (left, right, planar): (&mut Counts<C>, &mut Counts<C>, &mut Counts<C>),
 ) {
     let (left, right, planar) = (
         left.as_flattened_mut(),
