@@ -90,25 +90,32 @@ impl SmallNode {
         b
     }
 
-    /// The cheapest plane on `axis` as `(cost, position)`, ties going to the lower
+    /// The cheapest plane on each axis as `(cost, position)`, ties going to the lower
     /// position; `cost` is infinite when no candidate lies strictly inside the cell. For
     /// each reference the counts of every candidate are updated in one loop over the
     /// candidates (vector compares), then every candidate is priced in a second loop:
     /// the same counts and costs as pricing one candidate at a time. Which side takes
     /// the planar references is left to [`SmallNode::planar_left`], for the winner only.
     #[inline]
-    fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
+    fn best_on_axes(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
         match (2 * self.len).div_ceil(LANES) {
-            1 => self.best_in_chunks::<1>(axis, pricing),
-            2 => self.best_in_chunks::<2>(axis, pricing),
-            3 => self.best_in_chunks::<3>(axis, pricing),
-            4 => self.best_in_chunks::<4>(axis, pricing),
-            5 => self.best_in_chunks::<5>(axis, pricing),
-            _ => self.best_in_chunks::<{ CANDIDATES / LANES }>(axis, pricing),
+            1 => self.best_on_axes_in::<1>(pricing),
+            2 => self.best_on_axes_in::<2>(pricing),
+            3 => self.best_on_axes_in::<3>(pricing),
+            4 => self.best_on_axes_in::<4>(pricing),
+            5 => self.best_on_axes_in::<5>(pricing),
+            _ => self.best_on_axes_in::<{ CANDIDATES / LANES }>(pricing),
         }
     }
 
-    /// [`SmallNode::best_on_axis`] over the first `C` chunks of candidates, the counts
+    /// [`SmallNode::best_on_axes`] for a node that fills `C` chunks: one choice of `C`
+    /// for the three axes.
+    #[inline]
+    fn best_on_axes_in<const C: usize>(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
+        [0, 1, 2].map(|axis| self.best_in_chunks::<C>(axis, &pricing[axis]))
+    }
+
+    /// [`SmallNode::best_on_axes`] on `axis` over the first `C` chunks of candidates, the counts
     /// in arrays of just those chunks (so a node of few references clears and prices
     /// only what it fills).
     #[inline]
@@ -156,7 +163,7 @@ impl SmallNode {
     }
 
     /// Whether the references lying in the plane `pos` on `axis` go left: the side
-    /// [`SmallNode::best_on_axis`] priced cheaper (right on a tie), from the counts
+    /// [`SmallNode::best_on_axes`] priced cheaper (right on a tie), from the counts
     /// every candidate at `pos` shares.
     fn planar_left(&self, axis: usize, pos: f32, pricing: &PlaneCost) -> bool {
         let (mut left, mut right, mut planar) = (0u32, 0u32, 0u32);
@@ -271,12 +278,15 @@ impl Builder<'_> {
     fn small_plane(&self, cell: &Aabb, node: &SmallNode) -> Option<Plane> {
         let mut best = None;
         let mut best_cost = self.params.intersection_cost * node.len as f32;
-        for axis in 0..3 {
-            let pricing = PlaneCost::new(cell, axis, self.params)?;
-            let (cost, pos) = node.best_on_axis(axis, &pricing);
+        let pricing = [
+            PlaneCost::new(cell, 0, self.params)?,
+            PlaneCost::new(cell, 1, self.params)?,
+            PlaneCost::new(cell, 2, self.params)?,
+        ];
+        for (axis, (cost, pos)) in node.best_on_axes(&pricing).into_iter().enumerate() {
             if cost < best_cost {
                 best_cost = cost;
-                best = Some((axis, pos, pricing));
+                best = Some((axis, pos, pricing[axis]));
             }
         }
         let (axis, pos, pricing) = best?;
