@@ -340,7 +340,7 @@ impl KdTree {
     /// Builds the tree of `g`'s bounded primitives.
     pub fn build_with(g: &Geometry, params: &BuildParams) -> KdTree {
         let start = Instant::now();
-        let prims = Prims::new(g);
+        let prims = Prims::with(g, params.parallel);
         let bounded = g.bounded_count();
         assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
         let refs = binned::root_refs(g, &prims, bounded, params.parallel);
