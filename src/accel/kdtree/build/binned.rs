@@ -25,7 +25,7 @@ use super::sweep::SweepSpace;
 use super::{Builder, Out, PlaneCost, Ref, child_cells, tree_bounds};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// Most bins per axis (Mitsuba's kd-tree builder uses 128).
@@ -98,12 +98,19 @@ impl Binner {
         }
     }
 
-    /// The bins of a reference's minimum and maximum on `axis`: [`Binner::bins_as_floats`]
-    /// as indices.
+    /// The bins of a reference's minimum and maximum on the three axes:
+    /// [`Binner::bins_as_floats`] in 4-lane vectors (`Vec3A`, whose max and min pick
+    /// like `clamp` on finite coordinates, and on -0 give a bin 0 all the same), as
+    /// indices.
     #[inline]
-    fn bins_of(&self, b: &Aabb, axis: usize) -> (usize, usize) {
-        let (first, last) = self.bins_as_floats(b.min[axis], b.max[axis], axis);
-        (whole(first), whole(last))
+    fn bins_of(&self, b: &Aabb) -> ([usize; 3], [usize; 3]) {
+        let (lo, scale) = (Vec3A::from(self.lo), Vec3A::from(self.scale));
+        let top = Vec3A::splat(self.bins as f32);
+        let f_min = (Vec3A::from(b.min) - lo) * scale;
+        let f_max = (Vec3A::from(b.max) - lo) * scale;
+        let first = f_min.max(Vec3A::ZERO).min(top - Vec3A::ONE).floor();
+        let last = (f_max.ceil().max(Vec3A::ONE).min(top) - Vec3A::ONE).max(first);
+        (first.to_array().map(whole), last.to_array().map(whole))
     }
 
     /// The bins of the coordinates `min`, `max` on `axis` as whole floats (the
@@ -122,10 +129,10 @@ impl Binner {
     /// Counts `refs` into `bins`.
     fn count(&self, refs: &[Ref], bins: &mut Bins) {
         for r in refs {
+            let (first, last) = self.bins_of(&r.bounds);
             for axis in 0..3 {
-                let (first, last) = self.bins_of(&r.bounds, axis);
-                bins.starts[axis][first] += 1;
-                bins.ends[axis][last] += 1;
+                bins.starts[axis][first[axis]] += 1;
+                bins.ends[axis][last[axis]] += 1;
             }
         }
     }
@@ -465,14 +472,12 @@ mod tests {
                     }
                     b.grow(p);
                 }
+                let (firsts, lasts) = binner.bins_of(&b);
                 for axis in 0..3 {
-                    assert_eq!(
-                        binner.bins_of(&b, axis),
-                        bins_by_casts(&binner, &b, axis),
-                        "{b:?} axis {axis}"
-                    );
+                    let by_casts = bins_by_casts(&binner, &b, axis);
+                    assert_eq!((firsts[axis], lasts[axis]), by_casts, "{b:?} axis {axis}");
                     let (first, last) = binner.bins_as_floats(b.min[axis], b.max[axis], axis);
-                    assert_eq!((first as usize, last as usize), binner.bins_of(&b, axis));
+                    assert_eq!((first as usize, last as usize), by_casts);
                 }
             }
         }
