@@ -340,14 +340,36 @@ pub struct Prims {
 impl Prims {
     /// The records of `g`'s primitives, ids in `g`'s order (RAYS.md's for triangles).
     pub fn new(g: &Geometry) -> Prims {
+        Prims::with(g, false)
+    }
+
+    /// [`Prims::new`], the triangles' records made on the current rayon pool when
+    /// `parallel` (the same records: each depends on its triangle alone).
+    pub fn with(g: &Geometry, parallel: bool) -> Prims {
+        use rayon::prelude::*;
         let sphere_base = g.triangles.len() as u32;
         let box_base = sphere_base + g.spheres.len() as u32;
         let plane_base = box_base + g.boxes.len() as u32;
+        let ids = 0..g.triangles.len() as u32;
+        let (tris, corners) = if parallel {
+            rayon::join(
+                || {
+                    ids.clone()
+                        .into_par_iter()
+                        .map(|i| TriAccel::of(g, i))
+                        .collect()
+                },
+                || ids.clone().into_par_iter().map(|i| g.triangle(i)).collect(),
+            )
+        } else {
+            (
+                TriAccel::build_all(g),
+                ids.clone().map(|i| g.triangle(i)).collect(),
+            )
+        };
         Prims {
-            tris: TriAccel::build_all(g),
-            corners: (0..g.triangles.len() as u32)
-                .map(|i| g.triangle(i))
-                .collect(),
+            tris,
+            corners,
             spheres: g.spheres.clone(),
             boxes: g.boxes.clone(),
             planes: g.planes.clone(),

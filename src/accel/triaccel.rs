@@ -255,11 +255,15 @@ impl TriAccel {
     /// Records for every triangle of `geometry`, in id order.
     pub fn build_all(geometry: &Geometry) -> Vec<TriAccel> {
         (0..geometry.triangles.len() as u32)
-            .map(|i| {
-                let [a, b, c] = geometry.triangle(i);
-                TriAccel::new(a, b, c)
-            })
+            .map(|i| TriAccel::of(geometry, i))
             .collect()
+    }
+
+    /// The record of `geometry`'s triangle `tri`.
+    #[inline]
+    pub fn of(geometry: &Geometry, tri: u32) -> TriAccel {
+        let [a, b, c] = geometry.triangle(tri);
+        TriAccel::new(a, b, c)
     }
 
     /// Intersects `ray` with the triangle for `t_min < t < t_max`; returns `(t, u, v)`.

@@ -25,7 +25,7 @@ use super::sweep::SweepSpace;
 use super::{Builder, Out, PlaneCost, Ref, child_cells, tree_bounds};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// Most bins per axis (Mitsuba's kd-tree builder uses 128).
@@ -98,31 +98,51 @@ impl Binner {
         }
     }
 
-    /// The bins of a reference's minimum and maximum on `axis`. Float-to-int casts
-    /// saturate (a coordinate rounded below the cell gives bin 0).
+    /// The bins of a reference's minimum and maximum on the three axes:
+    /// [`Binner::bins_as_floats`] in 4-lane vectors (`Vec3A`, whose max and min pick
+    /// like `clamp` on finite coordinates, and on -0 give a bin 0 all the same), as
+    /// indices.
     #[inline]
-    fn bins_of(&self, b: &Aabb, axis: usize) -> (usize, usize) {
-        let f_min = (b.min[axis] - self.lo[axis]) * self.scale[axis];
-        let f_max = (b.max[axis] - self.lo[axis]) * self.scale[axis];
-        // Clamped as floats first, so the casts need no saturation (same bins).
+    fn bins_of(&self, b: &Aabb) -> ([usize; 3], [usize; 3]) {
+        let (lo, scale) = (Vec3A::from(self.lo), Vec3A::from(self.scale));
+        let top = Vec3A::splat(self.bins as f32);
+        let f_min = (Vec3A::from(b.min) - lo) * scale;
+        let f_max = (Vec3A::from(b.max) - lo) * scale;
+        let first = f_min.max(Vec3A::ZERO).min(top - Vec3A::ONE).floor();
+        let last = (f_max.ceil().max(Vec3A::ONE).min(top) - Vec3A::ONE).max(first);
+        (first.to_array().map(whole), last.to_array().map(whole))
+    }
+
+    /// The bins of the coordinates `min`, `max` on `axis` as whole floats (the
+    /// refinement only compares them). A coordinate rounded below the cell gives bin 0,
+    /// one above it the last bin; a maximum on a boundary counts in the bin below it.
+    #[inline]
+    fn bins_as_floats(&self, min: f32, max: f32, axis: usize) -> (f32, f32) {
+        let f_min = (min - self.lo[axis]) * self.scale[axis];
+        let f_max = (max - self.lo[axis]) * self.scale[axis];
         let top = self.bins as f32;
-        let first = f_min.clamp(0.0, top - 1.0) as usize;
-        let last = (f_max.ceil().clamp(1.0, top) as usize)
-            .saturating_sub(1)
-            .max(first);
-        (first, last)
+        let first = f_min.clamp(0.0, top - 1.0).floor();
+        let last = f_max.ceil().clamp(1.0, top) - 1.0;
+        (first, if last > first { last } else { first })
     }
 
     /// Counts `refs` into `bins`.
     fn count(&self, refs: &[Ref], bins: &mut Bins) {
         for r in refs {
+            let (first, last) = self.bins_of(&r.bounds);
             for axis in 0..3 {
-                let (first, last) = self.bins_of(&r.bounds, axis);
-                bins.starts[axis][first] += 1;
-                bins.ends[axis][last] += 1;
+                bins.starts[axis][first[axis]] += 1;
+                bins.ends[axis][last[axis]] += 1;
             }
         }
     }
+}
+
+/// A whole float in `0..2^23` as an index: its bits after adding 2^23 (no float-to-int
+/// conversion, which Rust makes saturate with extra compares).
+#[inline]
+fn whole(x: f32) -> usize {
+    ((x + 8_388_608.0).to_bits() & 0x7f_ffff) as usize
 }
 
 /// The bin boundary a node's plane is refined around.
@@ -297,18 +317,20 @@ impl Builder<'_> {
             axis,
             boundary: i,
         } = *window;
-        let near = (i - 1)..=i;
         let base_left: u32 = bins.starts[axis][..i - 1].iter().sum();
         let base_right: u32 = bins.ends[axis][i + 1..].iter().sum();
         // Minima (planar references included), maxima of the others, planar positions.
         let (mut mins, mut maxs, mut planars) = (Vec::new(), Vec::new(), Vec::new());
+        let (below, above) = ((i - 1) as f32, i as f32);
+        let near = |bin: f32| bin == below || bin == above;
         for r in refs {
-            let (first, last) = binner.bins_of(&r.bounds, axis);
-            let (a, b) = (r.bounds.min[axis] + 0.0, r.bounds.max[axis] + 0.0);
-            if near.contains(&first) {
+            let (a, b) = (r.bounds.min.as_ref()[axis], r.bounds.max.as_ref()[axis]);
+            let (first, last) = binner.bins_as_floats(a, b, axis);
+            let (a, b) = (a + 0.0, b + 0.0);
+            if near(first) {
                 mins.push(a);
             }
-            if near.contains(&last) {
+            if near(last) {
                 if a == b {
                     planars.push(a)
                 } else {
@@ -410,5 +432,54 @@ impl Builder<'_> {
             }
         }
         [left, right]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bins as integer casts give them, clamped (the oracle of [`Binner::bins_of`]).
+    fn bins_by_casts(binner: &Binner, b: &Aabb, axis: usize) -> (usize, usize) {
+        let f_min = (b.min[axis] - binner.lo[axis]) * binner.scale[axis];
+        let f_max = (b.max[axis] - binner.lo[axis]) * binner.scale[axis];
+        let top = binner.bins as f32;
+        let first = f_min.clamp(0.0, top - 1.0) as usize;
+        let last = (f_max.ceil().clamp(1.0, top) as usize)
+            .saturating_sub(1)
+            .max(first);
+        (first, last)
+    }
+
+    #[test]
+    fn bins_in_floats_equal_bins_by_casts() {
+        let mut rng = crate::scene::generate::Rng::new(11);
+        let cell = Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 0.5, 2.25));
+        for refs in [48, 100, 600] {
+            let binner = Binner::new(&cell, refs);
+            for k in 0..20_000 {
+                // Random bounds, some a little outside the cell, some on bin boundaries.
+                let mut b = Aabb::EMPTY;
+                for _ in 0..2 {
+                    let mut p = Vec3::new(
+                        rng.range(-1.1, 3.1),
+                        rng.range(-0.05, 0.55),
+                        rng.range(1.99, 2.26),
+                    );
+                    if k % 4 == 0 {
+                        let bin = (rng.next_u64() % (binner.bins as u64 + 1)) as f32;
+                        p = cell.min + (cell.max - cell.min) * (bin / binner.bins as f32);
+                    }
+                    b.grow(p);
+                }
+                let (firsts, lasts) = binner.bins_of(&b);
+                for axis in 0..3 {
+                    let by_casts = bins_by_casts(&binner, &b, axis);
+                    assert_eq!((firsts[axis], lasts[axis]), by_casts, "{b:?} axis {axis}");
+                    let (first, last) = binner.bins_as_floats(b.min[axis], b.max[axis], axis);
+                    assert_eq!((first as usize, last as usize), by_casts);
+                }
+            }
+        }
     }
 }

@@ -8,7 +8,7 @@
 
 use super::child_cells;
 use crate::scene::Aabb;
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 pub(super) fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {
     Aabb::new(a.min.max(b.min), a.max.min(b.max))
@@ -262,30 +262,99 @@ pub fn split_triangle_within(
     axis: usize,
     pos: f32,
 ) -> [Option<Aabb>; 2] {
-    let whole = triangle_bounds(&tri);
+    // In 4-lane vectors (`Vec3A`): the same operations in the same order as on `Vec3`
+    // (glam's min and max pick alike on ties and NaN), so the same bits.
+    let t = tri.map(Vec3A::from);
+    let whole = Box3 {
+        min: t[0].min(t[1]).min(t[2]),
+        max: t[0].max(t[1]).max(t[2]),
+    };
     let scale = whole.min.abs().max(whole.max.abs());
-    let (left_cell, right_cell) = child_cells(cell, axis, pos);
-    let parts = split_triangle_bounds(&tri, axis, pos, scale);
+    let parts = split_corners(&t, axis, pos, scale);
+    let (part, cell) = (Box3::of(part), Box3::of(cell));
     let mut bounds = [None; 2];
-    for ((b, side), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
-        let region = intersect_boxes(part, &child);
+    for (side, (b, cut)) in bounds.iter_mut().zip(&parts).enumerate() {
+        let mut child = cell;
+        if side == 0 {
+            child.max[axis] = pos;
+        } else {
+            child.min[axis] = pos;
+        }
+        let region = part.meet(&child);
         if region.is_empty() {
             continue;
         }
-        *b = Some(intersect_boxes(side, &region))
-            .filter(|b| !b.is_empty())
-            .or_else(|| overlap_fallback(tri, &whole, &region));
+        let b_cut = cut.meet(&region);
+        *b = if b_cut.is_empty() {
+            overlap_fallback(tri, &whole.to_aabb(), &region.to_aabb())
+        } else {
+            Some(b_cut.to_aabb())
+        };
     }
     bounds
+}
+
+/// A box in 4-lane vectors, for [`split_triangle_within`].
+#[derive(Clone, Copy)]
+struct Box3 {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Box3 {
+    const EMPTY: Box3 = Box3 {
+        min: Vec3A::INFINITY,
+        max: Vec3A::NEG_INFINITY,
+    };
+
+    fn of(b: &Aabb) -> Box3 {
+        Box3 {
+            min: b.min.into(),
+            max: b.max.into(),
+        }
+    }
+
+    fn to_aabb(self) -> Aabb {
+        Aabb::new(self.min.into(), self.max.into())
+    }
+
+    /// [`intersect_boxes`].
+    #[inline]
+    fn meet(&self, other: &Box3) -> Box3 {
+        Box3 {
+            min: self.min.max(other.min),
+            max: self.max.min(other.max),
+        }
+    }
+
+    /// [`Aabb::is_empty`].
+    #[inline]
+    fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    #[inline]
+    fn grow(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// [`grow_corner`] for a computed corner.
+    #[inline]
+    fn grow_widened(&mut self, p: Vec3A, scale: Vec3A) {
+        let widen = p.abs().max(scale) * CLIP_SLACK;
+        self.grow(p - widen);
+        self.grow(p + widen);
+    }
 }
 
 /// [`Polygon::split_bounds`] of a whole triangle (every corner its own), unrolled for its
 /// three corners: the same bounds without the polygon's corner loop.
 #[inline]
-fn split_triangle_bounds(tri: &[Vec3; 3], axis: usize, plane: f32, scale: Vec3) -> [Aabb; 2] {
+fn split_corners(tri: &[Vec3A; 3], axis: usize, plane: f32, scale: Vec3A) -> [Box3; 2] {
     let below = tri.map(|p| p[axis] <= plane);
     let above = tri.map(|p| p[axis] >= plane);
-    let mut parts = [Aabb::EMPTY; 2];
+    let mut parts = [Box3::EMPTY; 2];
     for i in 0..3 {
         let j = if i == 2 { 0 } else { i + 1 };
         if below[i] {
@@ -296,11 +365,16 @@ fn split_triangle_bounds(tri: &[Vec3; 3], axis: usize, plane: f32, scale: Vec3) 
         }
         let (cuts_below, cuts_above) = (below[i] != below[j], above[i] != above[j]);
         if cuts_below || cuts_above {
-            let p = crossing(&tri[i].to_array(), &tri[j].to_array(), axis, plane);
-            for (part, cut) in parts.iter_mut().zip([cuts_below, cuts_above]) {
-                if cut {
-                    grow_corner(part, p, false, scale);
-                }
+            // [`crossing`] in vectors.
+            let (a, b) = (tri[i], tri[j]);
+            let t = (plane - a[axis]) / (b[axis] - a[axis]);
+            let mut p = a + (b - a) * t;
+            p[axis] = plane;
+            if cuts_below {
+                parts[0].grow_widened(p, scale);
+            }
+            if cuts_above {
+                parts[1].grow_widened(p, scale);
             }
         }
     }

@@ -32,6 +32,7 @@ use super::node::{KdNode, MAX_INDEX};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry, PrimRef};
 use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
+use glam::Vec3;
 use std::time::Instant;
 
 /// A primitive in a node: the bounds of its part inside the node's cell. Shared by the
@@ -205,6 +206,9 @@ fn relocate(n: &KdNode, node_base: u32, leaf_base: u32) -> KdNode {
 /// What the build reads, shared by all subtrees.
 struct Builder<'a> {
     g: &'a Geometry,
+    /// Each triangle's corners side by side (`Prims::corners`): clipping reads one
+    /// record instead of an index triple and three vertices.
+    corners: &'a [[Vec3; 3]],
     params: &'a BuildParams,
     max_depth: u32,
     /// Size of the classification scratch (one byte per bounded primitive).
@@ -336,7 +340,7 @@ impl KdTree {
     /// Builds the tree of `g`'s bounded primitives.
     pub fn build_with(g: &Geometry, params: &BuildParams) -> KdTree {
         let start = Instant::now();
-        let prims = Prims::new(g);
+        let prims = Prims::with(g, params.parallel);
         let bounded = g.bounded_count();
         assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
         let refs = binned::root_refs(g, &prims, bounded, params.parallel);
@@ -348,6 +352,7 @@ impl KdTree {
             .min(MAX_DEPTH);
         let builder = Builder {
             g,
+            corners: &prims.corners,
             params,
             max_depth,
             prim_total: bounded as usize,
@@ -379,7 +384,7 @@ impl Builder<'_> {
     /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.
     fn clip(&self, prim: u32, cell: &Aabb) -> Option<Aabb> {
         match self.g.prim_ref(prim) {
-            PrimRef::Triangle(t) => clip_triangle(self.g.triangle(t), cell),
+            PrimRef::Triangle(t) => clip_triangle(self.corners[t as usize], cell),
             PrimRef::Sphere(s) => {
                 let s = &self.g.spheres[s as usize];
                 let nearest = s.center.clamp(cell.min, cell.max);
@@ -400,7 +405,7 @@ impl Builder<'_> {
     /// `pos` on `axis` (perfect splits); `None` for a side it does not reach.
     fn split_prim(&self, prim: u32, cell: &Aabb, axis: usize, pos: f32) -> [Option<Aabb>; 2] {
         match self.g.prim_ref(prim) {
-            PrimRef::Triangle(t) => split_triangle(self.g.triangle(t), cell, axis, pos),
+            PrimRef::Triangle(t) => split_triangle(self.corners[t as usize], cell, axis, pos),
             _ => {
                 let (left, right) = child_cells(cell, axis, pos);
                 [self.clip(prim, &left), self.clip(prim, &right)]
@@ -420,7 +425,7 @@ impl Builder<'_> {
     ) -> [Option<Aabb>; 2] {
         match self.g.prim_ref(prim) {
             PrimRef::Triangle(t) => {
-                split_triangle_within(self.g.triangle(t), part, cell, axis, pos)
+                split_triangle_within(self.corners[t as usize], part, cell, axis, pos)
             }
             _ => self.split_prim(prim, cell, axis, pos),
         }

@@ -90,41 +90,49 @@ impl SmallNode {
         b
     }
 
-    /// The cheapest plane on `axis` as `(cost, position)`, ties going to the lower
+    /// The cheapest plane on each axis as `(cost, position)`, ties going to the lower
     /// position; `cost` is infinite when no candidate lies strictly inside the cell. For
     /// each reference the counts of every candidate are updated in one loop over the
     /// candidates (vector compares), then every candidate is priced in a second loop:
     /// the same counts and costs as pricing one candidate at a time. Which side takes
     /// the planar references is left to [`SmallNode::planar_left`], for the winner only.
     #[inline]
-    fn best_on_axis(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
-        let cand = &self.lim[axis];
-        let chunks = (2 * self.len).div_ceil(LANES);
-        let mut left = [0.0f32; CANDIDATES];
-        let mut right = [0.0f32; CANDIDATES];
-        let mut planar = [0.0f32; CANDIDATES];
-        let counts = (&mut left, &mut right, &mut planar);
-        match chunks {
-            1 => count::<1>(cand, self.len, counts),
-            2 => count::<2>(cand, self.len, counts),
-            3 => count::<3>(cand, self.len, counts),
-            4 => count::<4>(cand, self.len, counts),
-            5 => count::<5>(cand, self.len, counts),
-            _ => count::<{ CANDIDATES / LANES }>(cand, self.len, counts),
+    fn best_on_axes(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
+        match (2 * self.len).div_ceil(LANES) {
+            1 => self.best_on_axes_in::<1>(pricing),
+            2 => self.best_on_axes_in::<2>(pricing),
+            3 => self.best_on_axes_in::<3>(pricing),
+            4 => self.best_on_axes_in::<4>(pricing),
+            5 => self.best_on_axes_in::<5>(pricing),
+            _ => self.best_on_axes_in::<{ CANDIDATES / LANES }>(pricing),
         }
+    }
+
+    /// [`SmallNode::best_on_axes`] for a node that fills `C` chunks: one choice of `C`
+    /// for the three axes.
+    #[inline]
+    fn best_on_axes_in<const C: usize>(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
+        [0, 1, 2].map(|axis| self.best_in_chunks::<C>(axis, &pricing[axis]))
+    }
+
+    /// [`SmallNode::best_on_axes`] on `axis` over the first `C` chunks of candidates, the counts
+    /// in arrays of just those chunks (so a node of few references clears and prices
+    /// only what it fills).
+    #[inline]
+    fn best_in_chunks<const C: usize>(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
+        let cand = &self.lim[axis];
+        let mut left: Counts<C> = [[0.0; LANES]; C];
+        let mut right: Counts<C> = [[0.0; LANES]; C];
+        let mut planar: Counts<C> = [[0.0; LANES]; C];
+        count::<C>(cand, self.len, (&mut left, &mut right, &mut planar));
         // Each candidate's cost and position as one integer key (costs and positions
         // order like their `order_bits`), so the cheapest, then lowest, is a vector
         // minimum whose bits give back both; a candidate outside the cell gets the
         // largest key.
         let mut least = [u64::MAX; LANES];
-        for c in 0..chunks {
-            let j = c * LANES;
-            let p: &[f32; LANES] = cand[j..][..LANES].try_into().expect("chunk");
-            let (l, r, pl) = (
-                &left[j..][..LANES],
-                &right[j..][..LANES],
-                &planar[j..][..LANES],
-            );
+        for c in 0..C {
+            let p: &[f32; LANES] = cand[c * LANES..][..LANES].try_into().expect("chunk");
+            let (l, r, pl) = (&left[c], &right[c], &planar[c]);
             for i in 0..LANES {
                 let p = p[i] + 0.0;
                 let prob = pricing.probabilities(p);
@@ -155,7 +163,7 @@ impl SmallNode {
     }
 
     /// Whether the references lying in the plane `pos` on `axis` go left: the side
-    /// [`SmallNode::best_on_axis`] priced cheaper (right on a tie), from the counts
+    /// [`SmallNode::best_on_axes`] priced cheaper (right on a tie), from the counts
     /// every candidate at `pos` shares.
     fn planar_left(&self, axis: usize, pos: f32, pricing: &PlaneCost) -> bool {
         let (mut left, mut right, mut planar) = (0u32, 0u32, 0u32);
@@ -170,20 +178,24 @@ impl SmallNode {
     }
 }
 
+/// One count per candidate of `C` chunks.
+type Counts<const C: usize> = [[f32; LANES]; C];
+
 /// The counts of the first `C` chunks of candidates `cand` of a node of `len` references:
 /// per candidate, the references starting left of it, ending right of it and lying in
-/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the chunks and their counts stay in vector registers while
-/// the references go by.
+/// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the
+/// chunks and their counts stay in vector registers while the references go by.
 #[inline]
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
-    (left, right, planar): (
-        &mut [f32; CANDIDATES],
-        &mut [f32; CANDIDATES],
-        &mut [f32; CANDIDATES],
-    ),
+    (left, right, planar): (&mut Counts<C>, &mut Counts<C>, &mut Counts<C>),
 ) {
+    let (left, right, planar) = (
+        left.as_flattened_mut(),
+        right.as_flattened_mut(),
+        planar.as_flattened_mut(),
+    );
     for i in 0..len {
         let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
         for j in 0..C * LANES {
@@ -266,12 +278,15 @@ impl Builder<'_> {
     fn small_plane(&self, cell: &Aabb, node: &SmallNode) -> Option<Plane> {
         let mut best = None;
         let mut best_cost = self.params.intersection_cost * node.len as f32;
-        for axis in 0..3 {
-            let pricing = PlaneCost::new(cell, axis, self.params)?;
-            let (cost, pos) = node.best_on_axis(axis, &pricing);
+        let pricing = [
+            PlaneCost::new(cell, 0, self.params)?,
+            PlaneCost::new(cell, 1, self.params)?,
+            PlaneCost::new(cell, 2, self.params)?,
+        ];
+        for (axis, (cost, pos)) in node.best_on_axes(&pricing).into_iter().enumerate() {
             if cost < best_cost {
                 best_cost = cost;
-                best = Some((axis, pos, pricing));
+                best = Some((axis, pos, pricing[axis]));
             }
         }
         let (axis, pos, pricing) = best?;
