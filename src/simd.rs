@@ -228,10 +228,37 @@ macro_rules! width {
     };
 }
 
+/// [`Float::transpose8`] of `wide`'s f32x8: a full packet's eight records as one 8x8
+/// transpose (`wide`'s, 24 shuffles with AVX) instead of 64 single-lane inserts.
+#[inline]
+fn transpose8_x8(records: &[[f32; 8]]) -> [wide::f32x8; 8] {
+    let Ok(records) = <&[[f32; 8]; 8]>::try_from(records) else {
+        return transpose8_lanes(records);
+    };
+    wide::f32x8::transpose(records.map(wide::f32x8::new))
+}
+
+/// [`Float::transpose4_into`] of `wide`'s f32x8: the low and the high halves of the
+/// four vectors as two 4x4 transposes, eight stores.
+#[inline]
+fn transpose4_x8(v: [wide::f32x8; 4], out: &mut [[f32; 4]]) {
+    let Ok(out) = <&mut [[f32; 4]; 8]>::try_from(&mut *out) else {
+        return transpose4_lanes(v, out);
+    };
+    let a = v.map(|x| x.to_array());
+    for h in 0..2 {
+        let half = a.map(|x| wide::f32x4::new(std::array::from_fn(|j| x[4 * h + j])));
+        for (r, t) in out[4 * h..].iter_mut().zip(wide::f32x4::transpose(half)) {
+            *r = t.to_array();
+        }
+    }
+}
+
 /// The [`Float`], [`Uint`] and [`LaneMask`] impls of one pair of `wide` types: masks
-/// are float vectors with every bit of a lane set or clear.
+/// are float vectors with every bit of a lane set or clear. `$t8` and `$t4` are the
+/// type's [`Float::transpose8`] and [`Float::transpose4_into`].
 macro_rules! wide_backend {
-    ($f:ident, $u:ident) => {
+    ($f:ident, $u:ident, $t8:path, $t4:path) => {
         impl BitAnd for VBool<wide::$f> {
             type Output = Self;
             #[inline]
@@ -293,6 +320,14 @@ macro_rules! wide_backend {
             type U = wide::$u;
             const ZERO: Self = wide::$f::ZERO;
             const ONE: Self = wide::$f::ONE;
+            #[inline]
+            fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
+                $t8(records)
+            }
+            #[inline]
+            fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
+                $t4(v, out)
+            }
             #[inline]
             fn splat(x: f32) -> Self {
                 wide::$f::splat(x)
@@ -393,9 +428,9 @@ macro_rules! wide_backend {
     };
 }
 
-wide_backend!(f32x4, u32x4);
-wide_backend!(f32x8, u32x8);
-wide_backend!(f32x16, u32x16);
+wide_backend!(f32x4, u32x4, transpose8_lanes, transpose4_lanes);
+wide_backend!(f32x8, u32x8, transpose8_x8, transpose4_x8);
+wide_backend!(f32x16, u32x16, transpose8_lanes, transpose4_lanes);
 
 width!(
     W4,
