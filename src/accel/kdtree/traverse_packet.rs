@@ -57,7 +57,7 @@ struct Entry<W: Simd> {
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
 /// leaf limit `next_up(best.t)`.
 #[inline]
-pub(super) fn next_up<F: Float>(v: F) -> F {
+fn next_up<F: Float>(v: F) -> F {
     let b = v.to_bits();
     let one = F::U::splat(1);
     let up = F::from_bits(b + one);
@@ -333,7 +333,10 @@ impl KdTree {
             bump(|c| c.leaf_visits += 1);
             // Half the leaves are empty: skip the limit's arithmetic there.
             if !prims.is_empty() {
-                occluded |= self.leaf_packet::<W, ANY_HIT>(prims, rays, lanes, best);
+                let mut hit = [Mask::<W>::NONE];
+                let one = std::slice::from_mut(best);
+                self.leaf_groups::<W, 1, ANY_HIT>(prims, |_| rays, &[lanes], one, &mut hit);
+                occluded |= hit[0];
                 if ANY_HIT && (active & !occluded).none() {
                     return occluded;
                 }
@@ -355,40 +358,60 @@ impl KdTree {
         }
     }
 
-    /// The primitives `prims` of a leaf against the lanes `lanes` of `rays`. Closest hit:
-    /// folds hits into `best` (in [`Hit::is_closer`] order) and returns no lane. With
-    /// `ANY_HIT`: returns the lanes that hit anything in `(t_min, t_max)`, each lane
-    /// leaving at its first hit.
+    /// The primitives `prims` of a leaf against the lanes `lanes[g]` of each group
+    /// `rays(g)`: one group for a packet, several for a tile (traverse_tile.rs). It goes
+    /// primitive by primitive, so each record is loaded once for all groups and the
+    /// groups' tests, independent of one another, overlap; each group sees the
+    /// primitives in the leaf's order, so its answers do not depend on the others.
+    /// Closest hit: folds group `g`'s hits into `best[g]` (in [`Hit::is_closer`]
+    /// order). With `ANY_HIT`: adds to `occluded[g]` the lanes that hit anything in
+    /// `(t_min, t_max)`, each lane leaving at its first hit.
     #[inline(always)]
-    pub(super) fn leaf_packet<W: Simd, const ANY_HIT: bool>(
+    pub(super) fn leaf_groups<'r, W: Simd, const G: usize, const ANY_HIT: bool>(
         &self,
         prims: &[u32],
-        rays: &RayPacket<W>,
-        lanes: Mask<W>,
-        best: &mut HitPacket<W>,
-    ) -> Mask<W> {
-        let mut occluded = Mask::<W>::NONE;
+        rays: impl Fn(usize) -> &'r RayPacket<W>,
+        lanes: &[Mask<W>; G],
+        best: &mut [HitPacket<W>],
+        occluded: &mut [Mask<W>],
+    ) {
+        let (best, occluded) = (&mut best[..G], &mut occluded[..G]);
         if ANY_HIT {
-            let mut live = lanes;
+            let mut live = *lanes;
             for &p in prims {
-                bump(|c| c.prim_tests += 1);
-                let hits = self.prims.intersect_prim_packet(p, rays, live, rays.t_max);
-                occluded |= hits.mask;
-                live &= !hits.mask;
-                if live.none() {
+                let mut any = Mask::<W>::NONE;
+                for g in 0..G {
+                    if live[g].any() {
+                        bump(|c| c.prim_tests += 1);
+                        let hits =
+                            self.prims
+                                .intersect_prim_packet(p, rays(g), live[g], rays(g).t_max);
+                        occluded[g] |= hits.mask;
+                        live[g] &= !hits.mask;
+                        any |= live[g];
+                    }
+                }
+                if any.none() {
                     break;
                 }
             }
         } else {
-            let mut limit = next_up(best.t).min(rays.t_max);
-            bump(|c| c.prim_tests += prims.len() as u64);
+            let mut limit: [Vf<W>; G] =
+                std::array::from_fn(|g| next_up(best[g].t).min(rays(g).t_max));
+            let groups = lanes.iter().filter(|l| l.any()).count() as u64;
+            bump(|c| c.prim_tests += groups * prims.len() as u64);
             for &p in prims {
-                let hits = self.prims.intersect_prim_packet(p, rays, lanes, limit);
-                if best.merge(&hits, p).any() {
-                    limit = next_up(best.t).min(rays.t_max);
+                for g in 0..G {
+                    if lanes[g].any() {
+                        let hits = self
+                            .prims
+                            .intersect_prim_packet(p, rays(g), lanes[g], limit[g]);
+                        if best[g].merge(&hits, p).any() {
+                            limit[g] = next_up(best[g].t).min(rays(g).t_max);
+                        }
+                    }
                 }
             }
         }
-        occluded
     }
 }

@@ -32,7 +32,7 @@
 use super::KdTree;
 use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack};
-use super::traverse_packet::{clip_to_box_packet, next_up};
+use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
@@ -290,7 +290,7 @@ impl KdTree {
             let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
             bump(|c| c.leaf_visits += 1);
             if !prims.is_empty() {
-                self.leaf_tile::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
+                self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
                 if ANY_HIT && (0..G).all(|g| (actives[g] & !occluded[g]).none()) {
                     return;
                 }
@@ -311,60 +311,6 @@ impl KdTree {
                 if any.any() {
                     (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
                     break;
-                }
-            }
-        }
-    }
-
-    /// The primitives `prims` of a leaf against the lanes `lanes` of the tile's groups,
-    /// primitive by primitive: each record is loaded once for all groups, and the
-    /// groups' tests, independent of one another, overlap. Each group sees the
-    /// primitives in the leaf's order with the operations of
-    /// [`KdTree::leaf_packet`], so its answers are that function's: closest hit folds
-    /// into `best` (in [`Hit::is_closer`] order), `ANY_HIT` sets the occluded lanes.
-    #[inline(always)]
-    fn leaf_tile<'r, W: Simd, const G: usize, const ANY_HIT: bool>(
-        &self,
-        prims: &[u32],
-        rays: &impl Fn(usize) -> &'r RayPacket<W>,
-        lanes: &[Mask<W>; G],
-        best: &mut [HitPacket<W>; MAX_GROUPS],
-        occluded: &mut [Mask<W>; MAX_GROUPS],
-    ) {
-        if ANY_HIT {
-            let mut live = *lanes;
-            for &p in prims {
-                let mut any = Mask::<W>::NONE;
-                for g in 0..G {
-                    if live[g].any() {
-                        bump(|c| c.prim_tests += 1);
-                        let hits =
-                            self.prims
-                                .intersect_prim_packet(p, rays(g), live[g], rays(g).t_max);
-                        occluded[g] |= hits.mask;
-                        live[g] &= !hits.mask;
-                        any |= live[g];
-                    }
-                }
-                if any.none() {
-                    break;
-                }
-            }
-        } else {
-            let mut limit: [Vf<W>; G] =
-                std::array::from_fn(|g| next_up(best[g].t).min(rays(g).t_max));
-            let groups = lanes.iter().filter(|l| l.any()).count() as u64;
-            bump(|c| c.prim_tests += groups * prims.len() as u64);
-            for &p in prims {
-                for g in 0..G {
-                    if lanes[g].any() {
-                        let hits = self
-                            .prims
-                            .intersect_prim_packet(p, rays(g), lanes[g], limit[g]);
-                        if best[g].merge(&hits, p).any() {
-                            limit[g] = next_up(best[g].t).min(rays(g).t_max);
-                        }
-                    }
                 }
             }
         }
