@@ -200,6 +200,30 @@ fn mixed_in(good: &[Ray]) -> Vec<Ray> {
     out
 }
 
+/// Stacks of 1 to 20 copies of one triangle apart along `z`: a stack of `n` cannot be
+/// split, so the kd-tree has leaves of every size from 1 to 20 (more than one group of
+/// the stream walks' lanes) with equal-`t` ties between the copies (rays from below
+/// along `z` hit them at distinct `t`, the others at equal `t` when the copies coincide:
+/// every other stack's copies do).
+fn leaf_stacks() -> Geometry {
+    let mut g = Geometry::default();
+    for n in 1..=20u32 {
+        let base = Vec3::new((n % 5) as f32 * 3.0, (n / 5) as f32 * 3.0, 0.0);
+        let (a, b, c) = (
+            base,
+            base + Vec3::new(1.7, 0.2, 0.1),
+            base + Vec3::new(0.3, 1.9, -0.2),
+        );
+        for i in 0..n {
+            let dz = if n % 2 == 0 { 0.0 } else { i as f32 * 1e-3 };
+            let at = g.vertices.len() as u32;
+            g.vertices.extend([a, b, c].map(|p| p + Vec3::Z * dz));
+            g.triangles.push([at, at + 1, at + 2]);
+        }
+    }
+    g
+}
+
 /// Every kind of batch on one geometry, through the kd-tree and through brute force.
 fn check_geometry(g: &Geometry, camera: &Camera, seed: u64, what: &str) {
     let tree = KdTree::build(g);
@@ -297,6 +321,26 @@ fn stress_meshes() {
         &looking_at(&closed, Vec3::new(0.1, 0.1, -0.2)),
         40,
         "closed box",
+    );
+    let stacks = leaf_stacks();
+    let tree = KdTree::build(&stacks);
+    let mut sizes: Vec<u32> = tree
+        .nodes()
+        .iter()
+        .filter(|n| n.is_leaf())
+        .map(|n| n.leaf_count())
+        .collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    assert!(
+        (1..=20).all(|n| sizes.contains(&n)),
+        "stacks: leaf sizes {sizes:?} miss some of 1..=20"
+    );
+    check_geometry(
+        &stacks,
+        &looking_at(&stacks, Vec3::new(0.2, -0.3, -1.0)),
+        60,
+        "leaf stacks",
     );
     let mixed = mixed_primitives();
     check_geometry(

@@ -12,6 +12,7 @@ pub mod packet;
 pub mod prims;
 pub mod prims_packet;
 pub mod triaccel;
+pub mod triaccel_leaf;
 pub mod triaccel_packet;
 pub mod watertight;
 
@@ -406,6 +407,21 @@ impl Prims {
                 v: 0.0,
                 prim,
             })
+        }
+    }
+
+    /// Folds the primitives `prims` of a leaf into `best` in order: each is tested with
+    /// `t_max = next_up(best.t)` (capped at the ray's) so an equal `t` reaches
+    /// [`Hit::is_closer`] and a smaller id wins the tie.
+    #[inline]
+    pub fn intersect_leaf(&self, prims: &[u32], ray: &Ray, best: &mut Hit) {
+        for &p in prims {
+            let limit = best.t.next_up().min(ray.t_max);
+            if let Some(h) = self.intersect_prim(p, ray, limit)
+                && Hit::is_closer(h.t, h.prim, best)
+            {
+                *best = h;
+            }
         }
     }
 

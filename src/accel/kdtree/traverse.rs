@@ -32,7 +32,7 @@ use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::ray::{Hit, Ray};
 use crate::scene::Aabb;
-use crate::simd::{LaneBits, W4, W8, W16};
+use crate::simd::{LaneBits, Simd, W4, W8, W16};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -42,6 +42,10 @@ const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
 pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
+
+/// The stream walks test groups of at least this many triangles of a leaf in lanes
+/// (one triangle alone is faster scalar: perf/stream.md).
+pub const LEAF_LANES_MIN: u32 = 2;
 
 impl KdTree {
     /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
@@ -177,13 +181,20 @@ impl KdTree {
                 }
             } else {
                 bump(|c| c.prim_tests += count as u64);
-                for &p in prims {
-                    let limit = best.t.next_up().min(ray.t_max);
-                    if let Some(h) = self.prims.intersect_prim(p, ray, limit)
-                        && Hit::is_closer(h.t, h.prim, best)
-                    {
-                        *best = h;
+                // The stream walks test a leaf's triangles in lanes (perf/stream.md);
+                // the scalar path keeps one test per primitive.
+                if BRANCHLESS && count >= LEAF_LANES_MIN {
+                    for group in prims.chunks(W8::LANES) {
+                        if group.len() as u32 >= LEAF_LANES_MIN
+                            && group.iter().all(|&p| p < self.prims.sphere_base)
+                        {
+                            self.prims.intersect_tris_lanes::<W8>(group, ray, best);
+                        } else {
+                            self.prims.intersect_leaf(group, ray, best);
+                        }
                     }
+                } else {
+                    self.prims.intersect_leaf(prims, ray, best);
                 }
             }
         }

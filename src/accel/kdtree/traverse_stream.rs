@@ -5,7 +5,9 @@
 //! Each walk is the scalar path's own step (`KdTree::step` in traverse.rs), so every
 //! ray's answer is the scalar answer bit for bit; here a step picks the next node
 //! without branches (several rays' unrelated turns would defeat the branch predictor)
-//! and asks for the line of that node, which arrives while the other walks step.
+//! and asks for the line of that node, which arrives while the other walks step, and a
+//! leaf's triangles are tested against the walk's ray in lanes, several at once
+//! ([`crate::accel::Prims::intersect_tris_lanes`], the scalar answers bit for bit).
 //! perf/stream.md has the figures of each choice.
 //!
 //! A tree small enough to stay in the cache has no load latency to hide, and there

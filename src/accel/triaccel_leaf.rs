@@ -1,0 +1,219 @@
+//! One ray against several TriAccel records at once: lanes are triangles (the leaf
+//! kernel of the kd-tree's stream walks). Each lane repeats [`super::triaccel::TriAccel::intersect`]
+//! operation by operation with the ray's components picked by the lane's axis `k`, so
+//! its `t`, `u`, `v` and edge bound are the scalar ones bit for bit; the lanes are then
+//! folded into the closest hit in leaf order with the limit the scalar loop would have
+//! used for each, and lanes within the bound of an edge run the scalar exact rule.
+
+use super::Prims;
+use super::triaccel::{C1, C2, T_SLACK, exact_rule, max_abs};
+use crate::ray::{Hit, Ray};
+use crate::simd::{Float, LaneMask, Simd, Vf};
+
+impl Prims {
+    /// Folds triangles `tris` (ids below `sphere_base`, at most `W::LANES`) into `best`
+    /// exactly as [`Prims::intersect_leaf`] does: for each in order, a hit under
+    /// `limit = min(next_up(best.t), ray.t_max)` replaces `best` when [`Hit::is_closer`].
+    #[inline(always)]
+    pub fn intersect_tris_lanes<W: Simd>(&self, tris: &[u32], ray: &Ray, best: &mut Hit) {
+        debug_assert!(tris.len() <= W::LANES);
+        let n = tris.len();
+        let rec = |i: usize| &self.tris[tris[i.min(n - 1)] as usize];
+        let f = |g: fn(&super::TriAccel) -> f32| Vf::<W>::from_fn(|i| g(rec(i)));
+        let kf = Vf::<W>::from_fn(|i| rec(i).k as f32);
+        let (m0, m1) = (kf.cmp_eq(Vf::<W>::ZERO), kf.cmp_eq(Vf::<W>::ONE));
+        let splat = Vf::<W>::splat;
+        // Axis k, k + 1, k + 2 (mod 3) of a vector, per lane.
+        let pick = |x: f32, y: f32, z: f32| {
+            let (x, y, z) = (splat(x), splat(y), splat(z));
+            let sel = Vf::<W>::select;
+            (
+                sel(m0, x, sel(m1, y, z)),
+                sel(m0, y, sel(m1, z, x)),
+                sel(m0, z, sel(m1, x, y)),
+            )
+        };
+        let (o, d) = (ray.org, ray.dir);
+        let (o_k, o_u, o_v) = pick(o.x, o.y, o.z);
+        let (d_k, d_u, d_v) = pick(d.x, d.y, d.z);
+        let (n_u, n_v) = (f(|r| r.n_u), f(|r| r.n_v));
+        let denom = d_k + n_u * d_u + n_v * d_v;
+        let numer = f(|r| r.n_d) - o_k - n_u * o_u - n_v * o_v;
+        let t = numer / denom;
+        let ad = denom.abs();
+        let (o_max, d_max) = (splat(max_abs(o)), splat(max_abs(d)));
+        let reach = f(|r| r.mag) + o_max + t.abs() * d_max;
+        let slack = reach * splat(T_SLACK);
+        let limit0 = best.t.next_up().min(ray.t_max);
+        // The loosest limit of this leaf (limits only narrow): a lane failing here fails
+        // under every later limit too.
+        let keep =
+            ((t - splat(limit0)) * ad).cmp_lt(slack) & ((splat(ray.t_min) - t) * ad).cmp_lt(slack);
+        let mut bits = keep.bits() & (W::all_bits() >> (W::LANES - n));
+        if bits == 0 {
+            return;
+        }
+        let hu = o_u + t * d_u;
+        let hv = o_v + t * d_v;
+        let u = hu * f(|r| r.b_nu) + hv * f(|r| r.b_nv) + f(|r| r.b_d);
+        let v = hu * f(|r| r.c_nu) + hv * f(|r| r.c_nv) + f(|r| r.c_d);
+        let w = Vf::<W>::ONE - u - v;
+        let bound = f(|r| r.err) * reach * (splat(C1) * d_max + splat(C2) * ad);
+        let edge = u.min_lt(v).min_lt(w) * ad;
+        bits &= edge.cmp_ge(-bound).bits();
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let limit = best.t.next_up().min(ray.t_max);
+            let (ti, adi, si) = (t.lane(i), ad.lane(i), slack.lane(i));
+            if !((ti - limit) * adi < si) {
+                continue;
+            }
+            let (ei, bi) = (edge.lane(i), bound.lane(i));
+            let prim = tris[i];
+            let hit = if ei >= bi {
+                (ti > ray.t_min && ti < limit).then(|| (ti, u.lane(i), v.lane(i)))
+            } else {
+                exact_rule(ray, limit, &self.corners[prim as usize])
+            };
+            if let Some((t, u, v)) = hit
+                && Hit::is_closer(t, prim, best)
+            {
+                *best = Hit { t, u, v, prim };
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Geometry;
+    use crate::scene::generate::{Rng, random_soup};
+    use crate::simd::{W4, W8, W16};
+    use glam::Vec3;
+
+    fn bits(h: &Hit) -> (u32, u32, u32, u32) {
+        (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits())
+    }
+
+    /// A soup, a fan of triangles sharing edges, exact duplicates (equal-`t` ties with
+    /// different ids), axis-aligned triangles (every `k`) and a degenerate one.
+    fn geometry() -> Geometry {
+        let mut g = random_soup(48, 0.6, 7);
+        let push = |g: &mut Geometry, a: Vec3, b: Vec3, c: Vec3| {
+            let i = g.vertices.len() as u32;
+            g.vertices.extend([a, b, c]);
+            g.triangles.push([i, i + 1, i + 2]);
+        };
+        let hub = Vec3::new(0.5, 0.5, 0.5);
+        for s in 0..8 {
+            let a0 = s as f32 * std::f32::consts::TAU / 8.0;
+            let a1 = (s + 1) as f32 * std::f32::consts::TAU / 8.0;
+            let p = |a: f32| hub + Vec3::new(a.cos(), a.sin(), 0.3 * a.sin()) * 0.4;
+            push(&mut g, hub, p(a0), p(a1));
+        }
+        for _ in 0..4 {
+            let [a, b, c] = g.triangle(3);
+            push(&mut g, a, b, c);
+        }
+        for k in 0..3 {
+            let e = |i: usize| Vec3::AXES[(k + i) % 3];
+            push(&mut g, e(1) * 0.1, e(1) * 0.9, e(2) * 0.9 + e(0) * 0.5);
+            push(
+                &mut g,
+                e(1) * 0.1 + e(0) * 0.5,
+                e(1) * 0.9 + e(0) * 0.5,
+                e(2) * 0.9 + e(0) * 0.5,
+            );
+        }
+        push(&mut g, Vec3::ZERO, Vec3::X, Vec3::X * 2.0);
+        g
+    }
+
+    /// Random rays, rays aimed at corners and edge midpoints of the group's
+    /// triangles, rays starting on them, axis-parallel rays with signed zeros, cut rays
+    /// and NaN rays.
+    fn rays(g: &Geometry, group: &[u32], rng: &mut Rng) -> Vec<Ray> {
+        let mut out = Vec::new();
+        for _ in 0..6 {
+            let o = rng.point(Vec3::splat(-0.5), Vec3::splat(1.5));
+            out.push(Ray::new(o, rng.unit_vector(), 0.0, f32::INFINITY));
+        }
+        for &prim in group {
+            let [a, b, c] = g.triangle(prim);
+            let o = rng.point(Vec3::splat(-1.0), Vec3::splat(2.0));
+            for target in [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5] {
+                out.push(Ray::new(o, target - o, 0.0, f32::INFINITY));
+                out.push(Ray::new(o, target - o, 0.0, 1.0));
+                out.push(Ray::new(o, target - o, 0.0, 1.0f32.next_down()));
+            }
+            let on = a * 0.25 + b * 0.25 + c * 0.5;
+            out.push(Ray::new(on, rng.unit_vector(), 0.0, f32::INFINITY));
+            out.push(Ray::new(on, rng.unit_vector(), 1e-4, f32::INFINITY));
+            for axis in Vec3::AXES {
+                for s in [1.0f32, -1.0] {
+                    let d = axis * s;
+                    let d = Vec3::select(d.cmpeq(Vec3::ZERO), Vec3::splat(-0.0), d);
+                    out.push(Ray::new(on - d, d, 0.0, f32::INFINITY));
+                    out.push(Ray::new(a - d, d, 0.0, f32::INFINITY));
+                }
+            }
+        }
+        out.push(Ray::new(Vec3::splat(f32::NAN), Vec3::X, 0.0, f32::INFINITY));
+        out.push(Ray::new(
+            Vec3::ZERO,
+            Vec3::new(0.5, f32::NAN, 0.5),
+            0.0,
+            1.0,
+        ));
+        out
+    }
+
+    /// Every group size from 1 to `W::LANES`, random groups (leaf order is any order),
+    /// against the scalar loop from a miss and from a hit found earlier.
+    fn lanes_match_scalar<W: Simd>() {
+        let g = geometry();
+        let p = Prims::new(&g);
+        let n = g.triangles.len() as u32;
+        let mut rng = Rng::new(W::LANES as u64);
+        let mut hits = 0;
+        for size in 1..=W::LANES {
+            for round in 0..12 {
+                let group: Vec<u32> = (0..size).map(|_| rng.below(n)).collect();
+                for ray in rays(&g, &group, &mut rng) {
+                    let mut want = Hit::MISS;
+                    p.intersect_leaf(&group, &ray, &mut want);
+                    for start in [Hit::MISS, want, Hit { prim: n, ..want }] {
+                        let (mut a, mut b) = (start, start);
+                        p.intersect_leaf(&group, &ray, &mut a);
+                        p.intersect_tris_lanes::<W>(&group, &ray, &mut b);
+                        assert_eq!(
+                            bits(&a),
+                            bits(&b),
+                            "{} lanes, group {group:?} (round {round}), ray {ray:?}, from {start:?}",
+                            W::LANES
+                        );
+                    }
+                    hits += want.is_hit() as usize;
+                }
+            }
+        }
+        assert!(hits > 1_000, "{} lanes: only {hits} hits", W::LANES);
+    }
+
+    #[test]
+    fn four_lanes_match_scalar() {
+        lanes_match_scalar::<W4>();
+    }
+
+    #[test]
+    fn eight_lanes_match_scalar() {
+        lanes_match_scalar::<W8>();
+    }
+
+    #[test]
+    fn sixteen_lanes_match_scalar() {
+        lanes_match_scalar::<W16>();
+    }
+}
