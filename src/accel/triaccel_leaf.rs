@@ -6,7 +6,8 @@
 //! used for each, and lanes within the bound of an edge run the scalar exact rule.
 
 use super::Prims;
-use super::triaccel::{C1, C2, T_SLACK, exact_rule, max_abs};
+use super::triaccel::{exact_rule, max_abs};
+use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Simd, Vf};
 
@@ -27,23 +28,21 @@ impl Prims {
         let pick = |x: f32, y: f32, z: f32| {
             let (x, y, z) = (splat(x), splat(y), splat(z));
             let sel = Vf::<W>::select;
-            (
+            [
                 sel(m0, x, sel(m1, y, z)),
                 sel(m0, y, sel(m1, z, x)),
                 sel(m0, z, sel(m1, x, y)),
-            )
+            ]
         };
         let (o, d) = (ray.org, ray.dir);
-        let (o_k, o_u, o_v) = pick(o.x, o.y, o.z);
-        let (d_k, d_u, d_v) = pick(d.x, d.y, d.z);
-        let (n_u, n_v) = (f(|r| r.n_u), f(|r| r.n_v));
-        let denom = d_k + n_u * d_u + n_v * d_v;
-        let numer = f(|r| r.n_d) - o_k - n_u * o_u - n_v * o_v;
-        let t = numer / denom;
-        let ad = denom.abs();
-        let (o_max, d_max) = (splat(max_abs(o)), splat(max_abs(d)));
-        let reach = f(|r| r.mag) + o_max + t.abs() * d_max;
-        let slack = reach * splat(T_SLACK);
+        let lanes = Projected::<W> {
+            o: pick(o.x, o.y, o.z),
+            d: pick(d.x, d.y, d.z),
+            o_max: splat(max_abs(o)),
+            d_max: splat(max_abs(d)),
+        };
+        let (t, ad, reach, slack) =
+            lanes.distance([f(|r| r.n_u), f(|r| r.n_v), f(|r| r.n_d)], f(|r| r.mag));
         let limit0 = best.t.next_up().min(ray.t_max);
         // The loosest limit of this leaf (limits only narrow): a lane failing here fails
         // under every later limit too.
@@ -53,13 +52,14 @@ impl Prims {
         if bits == 0 {
             return;
         }
-        let hu = o_u + t * d_u;
-        let hv = o_v + t * d_v;
-        let u = hu * f(|r| r.b_nu) + hv * f(|r| r.b_nv) + f(|r| r.b_d);
-        let v = hu * f(|r| r.c_nu) + hv * f(|r| r.c_nv) + f(|r| r.c_d);
-        let w = Vf::<W>::ONE - u - v;
-        let bound = f(|r| r.err) * reach * (splat(C1) * d_max + splat(C2) * ad);
-        let edge = u.min_lt(v).min_lt(w) * ad;
+        let (u, v, edge, bound) = lanes.barycentrics(
+            t,
+            ad,
+            reach,
+            [f(|r| r.b_nu), f(|r| r.b_nv), f(|r| r.b_d)],
+            [f(|r| r.c_nu), f(|r| r.c_nv), f(|r| r.c_d)],
+            f(|r| r.err),
+        );
         bits &= edge.cmp_ge(-bound).bits();
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;

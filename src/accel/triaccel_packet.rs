@@ -16,6 +16,59 @@ use super::triaccel::{C1, C2, T_SLACK, TriAccel, exact_rule};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
 use glam::Vec3;
 
+/// The projected test's arithmetic in lanes, shared by the packet test (lanes are rays,
+/// one record broadcast) and the leaf test (lanes are records, one ray broadcast,
+/// [`super::triaccel_leaf`]): the ray in the triangle's axes, `o = [o_k, o_u, o_v]` and
+/// `d` likewise, and the largest components of the ray's origin and direction. Both
+/// steps repeat [`TriAccel::intersect`] operation by operation.
+pub(super) struct Projected<W: Simd> {
+    pub o: [Vf<W>; 3],
+    pub d: [Vf<W>; 3],
+    pub o_max: Vf<W>,
+    pub d_max: Vf<W>,
+}
+
+impl<W: Simd> Projected<W> {
+    /// The distance `t` to the plane of a record with `n = [n_u, n_v, n_d]` and `mag`,
+    /// with `|denom|`, the `reach` of the error bounds and the range tolerance `slack`.
+    #[inline(always)]
+    pub fn distance(&self, n: [Vf<W>; 3], mag: Vf<W>) -> (Vf<W>, Vf<W>, Vf<W>, Vf<W>) {
+        let (o, d) = (&self.o, &self.d);
+        let [n_u, n_v, n_d] = n;
+        let denom = d[0] + n_u * d[1] + n_v * d[2];
+        let numer = n_d - o[0] - n_u * o[1] - n_v * o[2];
+        let t = numer / denom;
+        let ad = denom.abs();
+        let reach = mag + self.o_max + t.abs() * self.d_max;
+        (t, ad, reach, reach * Vf::<W>::splat(T_SLACK))
+    }
+
+    /// The barycentrics `u`, `v` at `t` of a record with `b = [b_nu, b_nv, b_d]`, `c`
+    /// likewise and `err`, with the distance `edge` to the nearest edge (times
+    /// `|denom|`) and its rounding `bound`.
+    #[inline(always)]
+    pub fn barycentrics(
+        &self,
+        t: Vf<W>,
+        ad: Vf<W>,
+        reach: Vf<W>,
+        b: [Vf<W>; 3],
+        c: [Vf<W>; 3],
+        err: Vf<W>,
+    ) -> (Vf<W>, Vf<W>, Vf<W>, Vf<W>) {
+        let splat = Vf::<W>::splat;
+        let (o, d) = (&self.o, &self.d);
+        let hu = o[1] + t * d[1];
+        let hv = o[2] + t * d[2];
+        let u = hu * b[0] + hv * b[1] + b[2];
+        let v = hu * c[0] + hv * c[1] + c[2];
+        let w = Vf::<W>::ONE - u - v;
+        let bound = err * reach * (splat(C1) * self.d_max + splat(C2) * ad);
+        let edge = u.min_lt(v).min_lt(w) * ad;
+        (u, v, edge, bound)
+    }
+}
+
 impl TriAccel {
     /// Intersects the lanes of `rays` set in `active` with the triangle for
     /// `t_min < t < t_max` (per lane); `corners` as in [`TriAccel::intersect`].
@@ -31,26 +84,27 @@ impl TriAccel {
         let k = self.k as usize;
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let (o, d) = (&rays.org, &rays.dir);
-        let (n_u, n_v) = (splat(self.n_u), splat(self.n_v));
-        let denom = d[k] + n_u * d[ku] + n_v * d[kv];
-        let numer = splat(self.n_d) - o[k] - n_u * o[ku] - n_v * o[kv];
-        let t = numer / denom;
-        let ad = denom.abs();
-        let (o_max, d_max) = (max_abs(o), max_abs(d));
-        let reach = splat(self.mag) + o_max + t.abs() * d_max;
-        let slack = reach * splat(T_SLACK);
+        let ray = Projected::<W> {
+            o: [o[k], o[ku], o[kv]],
+            d: [d[k], d[ku], d[kv]],
+            o_max: max_abs(o),
+            d_max: max_abs(d),
+        };
+        let (t, ad, reach, slack) =
+            ray.distance([self.n_u, self.n_v, self.n_d].map(splat), splat(self.mag));
         let mask =
             active & ((t - t_max) * ad).cmp_lt(slack) & ((rays.t_min - t) * ad).cmp_lt(slack);
         if mask.none() {
             return LaneHits::none();
         }
-        let hu = o[ku] + t * d[ku];
-        let hv = o[kv] + t * d[kv];
-        let u = hu * splat(self.b_nu) + hv * splat(self.b_nv) + splat(self.b_d);
-        let v = hu * splat(self.c_nu) + hv * splat(self.c_nv) + splat(self.c_d);
-        let w = Vf::<W>::ONE - u - v;
-        let bound = splat(self.err) * reach * (splat(C1) * d_max + splat(C2) * ad);
-        let edge = u.min_lt(v).min_lt(w) * ad;
+        let (u, v, edge, bound) = ray.barycentrics(
+            t,
+            ad,
+            reach,
+            [self.b_nu, self.b_nv, self.b_d].map(splat),
+            [self.c_nu, self.c_nv, self.c_d].map(splat),
+            splat(self.err),
+        );
         let inside = edge.cmp_ge(bound);
         let sure = mask & inside & t.cmp_gt(rays.t_min) & t.cmp_lt(t_max);
         let unsure = (mask & !inside & edge.cmp_ge(-bound)).bits();
