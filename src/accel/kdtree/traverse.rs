@@ -47,6 +47,10 @@ pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 /// (one triangle alone is faster scalar: perf/stream.md).
 pub const LEAF_LANES_MIN: u32 = 2;
 
+/// The width of those groups: 8 lanes (16 measured slower, perf/stream.md: a diffuse
+/// ray's leaves hold few triangles).
+type LeafLanes = W8;
+
 impl KdTree {
     /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
     /// cut to `[t_min, t_max]`; `None` when the ray misses the box (or has NaNs).
@@ -106,7 +110,9 @@ impl KdTree {
     /// scalar path keeps the branches (a correct guess lets the CPU start the next
     /// node's load early; measured 5% faster on Sponza diffuse); interleaved walks need
     /// the selects, since one branch then sees several rays' unrelated turns and
-    /// mispredicts more (perf/stream.md).
+    /// mispredicts more (perf/stream.md). The same walks (the stream's) test a leaf's
+    /// triangles in [`LeafLanes`] lanes, same answers; the scalar path tests them one by
+    /// one.
     #[inline(always)]
     pub(super) fn step<const ANY_HIT: bool, const PREFETCH: bool, const BRANCHLESS: bool>(
         &self,
@@ -184,11 +190,12 @@ impl KdTree {
                 // The stream walks test a leaf's triangles in lanes (perf/stream.md);
                 // the scalar path keeps one test per primitive.
                 if BRANCHLESS && count >= LEAF_LANES_MIN {
-                    for group in prims.chunks(W8::LANES) {
+                    for group in prims.chunks(LeafLanes::LANES) {
                         if group.len() as u32 >= LEAF_LANES_MIN
                             && group.iter().all(|&p| p < self.prims.sphere_base)
                         {
-                            self.prims.intersect_tris_lanes::<W8>(group, ray, best);
+                            self.prims
+                                .intersect_tris_lanes::<LeafLanes>(group, ray, best);
                         } else {
                             self.prims.intersect_leaf(group, ray, best);
                         }
