@@ -25,11 +25,15 @@ const CLIP_VERTICES: usize = 10;
 /// exactly on it; [`Polygon::clip`] and [`Polygon::split_bounds`] share it so both cut alike.
 #[inline]
 fn crossing(a: &[f32; 3], b: &[f32; 3], axis: usize, plane: f32) -> [f32; 3] {
+    let p = crossing_a(Vec3A::from_array(*a), Vec3A::from_array(*b), axis, plane);
+    p.to_array()
+}
+
+/// [`crossing`] in a 4-lane vector: the same operations per component, so the same bits.
+#[inline]
+fn crossing_a(a: Vec3A, b: Vec3A, axis: usize, plane: f32) -> Vec3A {
     let t = (plane - a[axis]) / (b[axis] - a[axis]);
-    let mut p = [0.0; 3];
-    for k in 0..3 {
-        p[k] = a[k] + (b[k] - a[k]) * t;
-    }
+    let mut p = a + (b - a) * t;
     p[axis] = plane;
     p
 }
@@ -365,11 +369,7 @@ fn split_corners(tri: &[Vec3A; 3], axis: usize, plane: f32, scale: Vec3A) -> [Bo
         }
         let (cuts_below, cuts_above) = (below[i] != below[j], above[i] != above[j]);
         if cuts_below || cuts_above {
-            // [`crossing`] in vectors.
-            let (a, b) = (tri[i], tri[j]);
-            let t = (plane - a[axis]) / (b[axis] - a[axis]);
-            let mut p = a + (b - a) * t;
-            p[axis] = plane;
+            let p = crossing_a(tri[i], tri[j], axis, plane);
             if cuts_below {
                 parts[0].grow_widened(p, scale);
             }
