@@ -8,8 +8,9 @@
 //!
 //! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and
 //! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], the leaves' ranges
-//! are exactly those of `leaves`, every leaf range lies inside `prim_indices`, and every
-//! index names a bounded primitive.
+//! are exactly those of `leaves`, every leaf range lies inside `prim_indices`, every
+//! index names a bounded primitive, and every inner node's empty-child bits say which of
+//! its children are empty leaves.
 
 pub mod build;
 pub mod node;
@@ -97,6 +98,13 @@ impl KdTree {
         &self.build_stats
     }
 
+    /// The primitive ids of the ranged leaf `n`.
+    #[inline(always)]
+    pub(super) fn leaf_prims(&self, n: &KdNode) -> &[u32] {
+        let first = n.leaf_first() as usize;
+        &self.prim_indices[first..first + n.leaf_count() as usize]
+    }
+
     /// Walks the tree for its statistics, priced with `params`' costs.
     pub fn stats(&self, params: &BuildParams) -> TreeStats {
         let mut s = TreeStats {
@@ -180,6 +188,13 @@ impl KdTree {
                 let c = node.children() as usize;
                 if c == 0 || c.is_multiple_of(2) || c + 1 >= n {
                     return Err(format!("node {i}: bad child pair {c}"));
+                }
+                let flags = node::empty_flags(&self.nodes, c);
+                if node.empty_children() != flags {
+                    return Err(format!(
+                        "node {i}: empty-child bits {} for children {flags}",
+                        node.empty_children()
+                    ));
                 }
                 if !node.split.is_finite() {
                     return Err(format!("node {i}: split {}", node.split));

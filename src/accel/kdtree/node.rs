@@ -1,9 +1,15 @@
 //! The kd-tree's node: 8 bytes, in one contiguous 64-byte-aligned array.
 //!
-//! `bits` holds the axis (0, 1, 2) or the leaf flag (3) in its low 2 bits; the other 30
-//! bits index the first child of an inner node (children come in pairs so one index
-//! reaches both: right = left + 1) or, for a leaf, its entry in the leaf table.
-//! pbrt's `KdAccelNode` is the ancestor.
+//! `bits` holds the axis (0, 1, 2) or the leaf flag (3) in its low 2 bits. For an inner
+//! node, the next 2 bits say which children are empty leaves and the top 28 bits index
+//! the first child (children come in pairs so one index reaches both: right = left +
+//! 1); for a leaf, the other 30 bits index its entry in the leaf table. pbrt's
+//! `KdAccelNode` is the ancestor.
+//!
+//! The empty-child bits let traversal skip an empty leaf from its parent: a ray that
+//! would push the far child only to visit an empty near leaf and pop it goes to the far
+//! child at once, with the interval the pop would have given it, and a ray whose far
+//! child is empty pushes nothing. Half the leaves of the benchmark scenes are empty.
 //!
 //! The builder writes leaves as leaf-table entries; [`with_leaf_ranges`] then turns
 //! every leaf into its range of the index list (first index in the 30 bits, count in
@@ -29,14 +35,23 @@ const _: () = assert!(std::mem::size_of::<KdNode>() == 8);
 /// Largest index that fits the node's 30 bits.
 pub const MAX_INDEX: u32 = (1 << 30) - 1;
 
+/// Largest child-pair index that fits an inner node's 28 bits.
+pub const MAX_CHILD: u32 = (1 << 28) - 1;
+
+/// An inner node's flag: its left child is an empty leaf.
+pub const LEFT_EMPTY: u32 = 1;
+
+/// An inner node's flag: its right child is an empty leaf.
+pub const RIGHT_EMPTY: u32 = 2;
+
 impl KdNode {
     /// An inner node splitting `axis` at `split`, whose children are `left` and `left + 1`.
     #[inline]
     pub fn inner(axis: u32, split: f32, left: u32) -> KdNode {
-        debug_assert!(axis < 3 && left <= MAX_INDEX);
+        debug_assert!(axis < 3 && left <= MAX_CHILD);
         KdNode {
             split,
-            bits: (left << 2) | axis,
+            bits: (left << 4) | axis,
         }
     }
 
@@ -65,7 +80,15 @@ impl KdNode {
     /// Index of the left child of an inner node; the right child follows it.
     #[inline]
     pub fn children(&self) -> u32 {
-        self.bits >> 2
+        self.bits >> 4
+    }
+
+    /// Which children of an inner node are empty leaves: [`LEFT_EMPTY`] and
+    /// [`RIGHT_EMPTY`] bits, set by [`mark_empty_children`]; bit `i` is child
+    /// `children() + i`.
+    #[inline]
+    pub fn empty_children(&self) -> u32 {
+        (self.bits >> 2) & 3
     }
 
     /// Leaf-table index of a leaf, as the builder writes it.
@@ -111,6 +134,24 @@ pub fn with_leaf_ranges(mut nodes: Vec<KdNode>, leaves: &[[u32; 2]]) -> Vec<KdNo
         *n = KdNode::leaf_range(first, count);
     }
     nodes
+}
+
+/// The [`KdNode::empty_children`] bits of the child pair starting at `left`.
+pub fn empty_flags(nodes: &[KdNode], left: usize) -> u32 {
+    let empty = |k: usize| nodes[k].is_leaf() && nodes[k].leaf_count() == 0;
+    (empty(left) as u32 * LEFT_EMPTY) | (empty(left + 1) as u32 * RIGHT_EMPTY)
+}
+
+/// Sets every inner node's [`KdNode::empty_children`] bits from its children, which
+/// must be ranged leaves already ([`with_leaf_ranges`]) where they are leaves.
+pub fn mark_empty_children(nodes: &mut [KdNode]) {
+    for i in 0..nodes.len() {
+        let n = nodes[i];
+        if !n.is_leaf() {
+            let flags = empty_flags(nodes, n.children() as usize);
+            nodes[i].bits = (n.bits & !(3 << 2)) | (flags << 2);
+        }
+    }
 }
 
 /// Eight nodes: one 64-byte cache line.
@@ -166,8 +207,9 @@ mod tests {
 
     #[test]
     fn bits_round_trip() {
-        let n = KdNode::inner(2, 1.5, MAX_INDEX);
-        assert!(!n.is_leaf() && n.axis() == 2 && n.children() == MAX_INDEX && n.split == 1.5);
+        let n = KdNode::inner(2, 1.5, MAX_CHILD);
+        assert!(!n.is_leaf() && n.axis() == 2 && n.children() == MAX_CHILD && n.split == 1.5);
+        assert_eq!(n.empty_children(), 0);
         let l = KdNode::leaf(12345);
         assert!(l.is_leaf() && l.leaf_index() == 12345);
         let r = KdNode::leaf_range(MAX_INDEX, u32::MAX);
@@ -181,6 +223,26 @@ mod tests {
         assert_eq!(nodes[0], KdNode::inner(0, 1.0, 1));
         assert_eq!((nodes[1].leaf_first(), nodes[1].leaf_count()), (3, 4));
         assert_eq!((nodes[2].leaf_first(), nodes[2].leaf_count()), (7, 0));
+    }
+
+    #[test]
+    fn empty_children_are_marked_without_touching_the_rest() {
+        let mut nodes = vec![
+            KdNode::inner(1, 2.0, 1),
+            KdNode::leaf_range(0, 0),
+            KdNode::inner(2, -3.0, 3),
+            KdNode::leaf_range(4, 2),
+            KdNode::leaf_range(6, 0),
+        ];
+        mark_empty_children(&mut nodes);
+        assert_eq!(nodes[0].empty_children(), LEFT_EMPTY);
+        assert_eq!(nodes[2].empty_children(), RIGHT_EMPTY);
+        for (n, (axis, split, children)) in [(0, (1, 2.0, 1)), (2, (2, -3.0, 3))] {
+            let n = nodes[n];
+            assert!(!n.is_leaf());
+            assert_eq!((n.axis(), n.split, n.children()), (axis, split, children));
+        }
+        assert_eq!((nodes[3].leaf_first(), nodes[3].leaf_count()), (4, 2));
     }
 
     #[test]

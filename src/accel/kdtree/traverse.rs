@@ -122,49 +122,92 @@ impl KdTree {
     ) -> Option<bool> {
         let axes = &walk.axes;
         let n = self.nodes[walk.node as usize];
-        if !n.is_leaf() {
+        // An inner node whose ray goes only to empty children (they hold nothing) ends
+        // the step here, at the pops below, as a leaf does.
+        'visit: {
+            if n.is_leaf() {
+                break 'visit;
+            }
             bump(|c| c.node_steps += 1);
             let axis = n.axis() & 3;
             let children = n.children();
+            // Bit 0: the left child is an empty leaf; bit 1: the right one.
+            let empty = n.empty_children();
             let o = axes.org[axis];
             // Within `margin` of the plane, a triangle test can round a ray onto
             // either side of it.
             let margin = axes.margin[axis];
             if axes.zero[axis] {
+                let (left, right) = (empty & 1 == 0, empty & 2 == 0);
                 if o + margin < n.split {
+                    if !left {
+                        break 'visit;
+                    }
                     walk.node = children;
                 } else if o - margin > n.split {
+                    if !right {
+                        break 'visit;
+                    }
+                    walk.node = children + 1;
+                } else if !left {
                     walk.node = children + 1;
                 } else {
-                    walk.stack.push((children + 1, walk.t_near, walk.t_far));
+                    if right {
+                        walk.stack.push((children + 1, walk.t_near, walk.t_far));
+                    }
                     walk.node = children;
                 }
             } else {
                 let t_split = (n.split - o) * axes.inv[axis];
                 let slack = axes.slack[axis];
-                let near = children + axes.negative[axis];
-                let far = children + 1 - axes.negative[axis];
+                let negative = axes.negative[axis];
+                let near = children + negative;
+                let far = children + 1 - negative;
+                let near_empty = (empty >> negative) & 1 != 0;
+                let far_empty = (empty >> (1 - negative)) & 1 != 0;
                 if BRANCHLESS {
                     use std::hint::select_unpredictable as select;
                     let near_only = t_split - slack > walk.t_far;
                     let far_only = !near_only && t_split + slack < walk.t_near;
                     let both = !near_only && !far_only;
                     let entry = max_gt(t_split - slack, walk.t_near);
-                    walk.stack.push_if(both, (far, entry, walk.t_far));
+                    // An empty far child is not pushed. Skipping an empty near child
+                    // for the far one, as the branches below do, costs more here than
+                    // the leaf visit it saves (perf/stream.md).
+                    walk.stack
+                        .push_if(both & !far_empty, (far, entry, walk.t_far));
                     walk.node = select(far_only, far, near);
                     walk.t_far = select(both, min_lt(t_split + slack, walk.t_far), walk.t_far);
                 } else if t_split - slack > walk.t_far {
+                    if near_empty {
+                        break 'visit;
+                    }
                     walk.node = near;
                 } else if t_split + slack < walk.t_near {
+                    if far_empty {
+                        break 'visit;
+                    }
                     walk.node = far;
                 } else {
                     // `max_gt`/`min_lt` keep `t_near`/`t_far` where the split distance is
                     // NaN (a ray in the plane with a subnormal component), as the packet
                     // path.
-                    walk.stack
-                        .push((far, max_gt(t_split - slack, walk.t_near), walk.t_far));
-                    walk.node = near;
-                    walk.t_far = min_lt(t_split + slack, walk.t_far);
+                    let entry = max_gt(t_split - slack, walk.t_near);
+                    if near_empty {
+                        // Straight to the far child, with the interval and the test
+                        // its pop would have had.
+                        if far_empty || (!ANY_HIT && entry > best.t) {
+                            break 'visit;
+                        }
+                        walk.node = far;
+                        walk.t_near = entry;
+                    } else {
+                        if !far_empty {
+                            walk.stack.push((far, entry, walk.t_far));
+                        }
+                        walk.node = near;
+                        walk.t_far = min_lt(t_split + slack, walk.t_far);
+                    }
                 }
             }
             if PREFETCH {
@@ -172,11 +215,40 @@ impl KdTree {
             }
             return None;
         }
-        let count = n.leaf_count();
+        if let Some(answer) = self.leaf_step::<ANY_HIT, BRANCHLESS>(&n, ray, best) {
+            return Some(answer);
+        }
+        loop {
+            let Some((next, entry, exit)) = walk.stack.pop() else {
+                return Some(false);
+            };
+            if !ANY_HIT && entry > best.t {
+                continue;
+            }
+            (walk.node, walk.t_near, walk.t_far) = (next, entry, exit);
+            if PREFETCH {
+                self.prefetch_node(walk.node);
+            }
+            return None;
+        }
+    }
+
+    /// The primitives of the leaf `n` (any node: an inner one has none) against `ray`:
+    /// closest hit folded into `best`, or with `ANY_HIT`, `Some(true)` at the first hit.
+    #[inline(always)]
+    fn leaf_step<const ANY_HIT: bool, const BRANCHLESS: bool>(
+        &self,
+        n: &super::node::KdNode,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> Option<bool> {
+        if !n.is_leaf() {
+            return None;
+        }
+        let prims = self.leaf_prims(n);
+        let count = prims.len() as u32;
         bump(|c| c.leaf_visits += 1);
         if count != 0 {
-            let first = n.leaf_first() as usize;
-            let prims = &self.prim_indices[first..first + count as usize];
             if ANY_HIT {
                 let hit = |&p: &u32| {
                     bump(|c| c.prim_tests += 1);
@@ -205,19 +277,7 @@ impl KdTree {
                 }
             }
         }
-        loop {
-            let Some((next, entry, exit)) = walk.stack.pop() else {
-                return Some(false);
-            };
-            if !ANY_HIT && entry > best.t {
-                continue;
-            }
-            (walk.node, walk.t_near, walk.t_far) = (next, entry, exit);
-            if PREFETCH {
-                self.prefetch_node(walk.node);
-            }
-            return None;
-        }
+        None
     }
 
     /// Asks the CPU to start loading node `node`'s cache line; a hint only.

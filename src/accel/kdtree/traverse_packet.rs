@@ -266,9 +266,26 @@ impl KdTree {
             std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
         let slacks: [Vf<W>; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
         let mut stack = Stack::<Entry<W>>::new();
-        loop {
+        'walk: loop {
             let n = self.nodes[node as usize];
-            if !n.is_leaf() {
+            // Leaves, and inner nodes whose lanes all go to empty children, end here and
+            // fall through to the pops; every other step continues at a child.
+            'visit: {
+                if n.is_leaf() {
+                    let prims = self.leaf_prims(&n);
+                    bump(|c| c.leaf_visits += 1);
+                    // Walks never enter empty leaves but a tree that is one.
+                    if !prims.is_empty() {
+                        let mut hit = [Mask::<W>::NONE];
+                        let one = std::slice::from_mut(best);
+                        self.leaf_groups::<W, 1, ANY_HIT>(prims, |_| rays, &[lanes], one, &mut hit);
+                        occluded |= hit[0];
+                        if ANY_HIT && (active & !occluded).none() {
+                            return occluded;
+                        }
+                    }
+                    break 'visit;
+                }
                 bump(|c| c.node_steps += 1);
                 let axis = n.axis();
                 let children = n.children();
@@ -301,20 +318,60 @@ impl KdTree {
                     // The commonest step: every lane goes near only, its mask unchanged
                     // (the far test below could not remove a near-only lane).
                     if (lanes & !near_only).none() {
+                        // An empty near leaf holds nothing for them.
+                        if (n.empty_children() >> flip) & 1 != 0 {
+                            break 'visit;
+                        }
                         node = near;
-                        continue;
+                        continue 'walk;
                     }
                     (near_only, hi.cmp_lt(t_near))
                 };
-                // As in the scalar path, near-only wins when both tests pass.
-                let near_lanes = lanes & !(far_only & !near_only);
-                let far_lanes = lanes & !near_only;
+                // Bit 0 for an empty near leaf, bit 1 for an empty far one.
+                let empty = n.empty_children();
+                let empty = if flip == 0 {
+                    empty
+                } else {
+                    (empty >> 1) | ((empty & 1) << 1)
+                };
+                // As in the scalar path, near-only wins when both tests pass. No lane
+                // goes to an empty leaf: it holds nothing.
+                let mut near_lanes = lanes & !(far_only & !near_only);
+                let mut far_lanes = lanes & !near_only;
+                if empty != 0 {
+                    if empty & 1 != 0 {
+                        near_lanes = Mask::<W>::NONE;
+                    }
+                    if empty & 2 != 0 {
+                        far_lanes = Mask::<W>::NONE;
+                    }
+                }
                 if far_lanes.none() {
+                    if near_lanes.none() {
+                        break 'visit;
+                    }
                     node = near;
                     lanes = near_lanes;
+                    if empty != 0 {
+                        // The near interval of lanes that would also have gone far;
+                        // near-only lanes keep theirs (`hi > t_far` there).
+                        t_far = select(zero[axis], t_far, hi.min_lt(t_far));
+                    }
                 } else if near_lanes.none() {
                     node = far;
                     lanes = far_lanes;
+                    if empty != 0 {
+                        // The interval the pop of the far child would have given the
+                        // lanes that went near first (far-only lanes keep theirs), and
+                        // the pop's test against their best hits.
+                        t_near = select(zero[axis], t_near, lo.max_gt(t_near));
+                        if !ANY_HIT {
+                            lanes &= !t_near.cmp_gt(best.t);
+                            if lanes.none() {
+                                break 'visit;
+                            }
+                        }
+                    }
                 } else {
                     stack.push(Entry {
                         node: far,
@@ -326,20 +383,7 @@ impl KdTree {
                     lanes = near_lanes;
                     t_far = select(zero[axis], t_far, hi.min_lt(t_far));
                 }
-                continue;
-            }
-            let first = n.leaf_first() as usize;
-            let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
-            bump(|c| c.leaf_visits += 1);
-            // Half the leaves are empty: skip the limit's arithmetic there.
-            if !prims.is_empty() {
-                let mut hit = [Mask::<W>::NONE];
-                let one = std::slice::from_mut(best);
-                self.leaf_groups::<W, 1, ANY_HIT>(prims, |_| rays, &[lanes], one, &mut hit);
-                occluded |= hit[0];
-                if ANY_HIT && (active & !occluded).none() {
-                    return occluded;
-                }
+                continue 'walk;
             }
             loop {
                 let Some(e) = stack.pop() else {

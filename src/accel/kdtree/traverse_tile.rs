@@ -243,9 +243,22 @@ impl KdTree {
             })
         });
         let mut stack = Stack::<TileEntry<W, G>>::new();
-        loop {
+        'walk: loop {
             let n = self.nodes[node as usize];
-            if !n.is_leaf() {
+            // Leaves, and inner nodes whose lanes all go to empty children, end here and
+            // fall through to the pops; every other step continues at a child.
+            'visit: {
+                if n.is_leaf() {
+                    let prims = self.leaf_prims(&n);
+                    bump(|c| c.leaf_visits += 1);
+                    if !prims.is_empty() {
+                        self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
+                        if ANY_HIT && (0..G).all(|g| (actives[g] & !occluded[g]).none()) {
+                            return;
+                        }
+                    }
+                    break 'visit;
+                }
                 bump(|c| c.node_steps += 1);
                 let axis = n.axis();
                 let children = n.children();
@@ -257,22 +270,60 @@ impl KdTree {
                 let lo: [Vf<W>; G] = std::array::from_fn(|g| t_split[g] - slack[g]);
                 let hi: [Vf<W>; G] = std::array::from_fn(|g| t_split[g] + slack[g]);
                 let near_only: [Mask<W>; G] = std::array::from_fn(|g| lo[g].cmp_gt(t_far[g]));
-                let far_lanes: [Mask<W>; G] = std::array::from_fn(|g| lanes[g] & !near_only[g]);
+                let mut far_lanes: [Mask<W>; G] = std::array::from_fn(|g| lanes[g] & !near_only[g]);
                 if far_lanes.iter().fold(Mask::<W>::NONE, |a, &m| a | m).none() {
-                    // The commonest step: every lane goes near only.
+                    // The commonest step: every lane goes near only (an empty near
+                    // leaf holds nothing for them).
+                    if (n.empty_children() >> flip) & 1 != 0 {
+                        break 'visit;
+                    }
                     node = near;
-                    continue;
+                    continue 'walk;
                 }
-                // As in the scalar path, near-only wins when both tests pass.
-                let near_lanes: [Mask<W>; G] =
+                // Bit 0 for an empty near leaf, bit 1 for an empty far one.
+                let empty = n.empty_children();
+                let empty = if flip == 0 {
+                    empty
+                } else {
+                    (empty >> 1) | ((empty & 1) << 1)
+                };
+                // As in the scalar path, near-only wins when both tests pass. No lane
+                // goes to an empty leaf: it holds nothing.
+                let mut near_lanes: [Mask<W>; G] =
                     std::array::from_fn(|g| lanes[g] & !(hi[g].cmp_lt(t_near[g]) & !near_only[g]));
-                if near_lanes
-                    .iter()
-                    .fold(Mask::<W>::NONE, |a, &m| a | m)
-                    .none()
-                {
+                if empty & 1 != 0 {
+                    near_lanes = [Mask::<W>::NONE; G];
+                }
+                if empty & 2 != 0 {
+                    far_lanes = [Mask::<W>::NONE; G];
+                }
+                let any = |m: &[Mask<W>; G]| m.iter().fold(Mask::<W>::NONE, |a, &l| a | l).any();
+                if !any(&far_lanes) {
+                    if !any(&near_lanes) {
+                        break 'visit;
+                    }
+                    node = near;
+                    lanes = near_lanes;
+                    // The near interval of lanes that would also have gone far;
+                    // near-only lanes keep theirs (`hi > t_far` there).
+                    t_far = std::array::from_fn(|g| hi[g].min_lt(t_far[g]));
+                } else if !any(&near_lanes) {
                     node = far;
                     lanes = far_lanes;
+                    if empty != 0 {
+                        // The interval the pop of the far child would have given the
+                        // lanes that went near first (far-only lanes keep theirs), and
+                        // the pop's test against their best hits.
+                        t_near = std::array::from_fn(|g| lo[g].max_gt(t_near[g]));
+                        if !ANY_HIT {
+                            for g in 0..G {
+                                lanes[g] &= !t_near[g].cmp_gt(best[g].t);
+                            }
+                            if !any(&lanes) {
+                                break 'visit;
+                            }
+                        }
+                    }
                 } else {
                     stack.push(TileEntry {
                         node: far,
@@ -284,16 +335,7 @@ impl KdTree {
                     lanes = near_lanes;
                     t_far = std::array::from_fn(|g| hi[g].min_lt(t_far[g]));
                 }
-                continue;
-            }
-            let first = n.leaf_first() as usize;
-            let prims = &self.prim_indices[first..first + n.leaf_count() as usize];
-            bump(|c| c.leaf_visits += 1);
-            if !prims.is_empty() {
-                self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
-                if ANY_HIT && (0..G).all(|g| (actives[g] & !occluded[g]).none()) {
-                    return;
-                }
+                continue 'walk;
             }
             loop {
                 let Some(e) = stack.pop() else {

@@ -28,7 +28,7 @@ mod small;
 mod sweep;
 
 use super::KdTree;
-use super::node::{KdNode, MAX_INDEX};
+use super::node::{KdNode, MAX_CHILD, MAX_INDEX};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry, PrimRef};
 use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
@@ -154,7 +154,7 @@ impl Out {
     /// now); returns the left child's index.
     fn inner(&mut self, slot: usize, axis: usize, pos: f32) -> usize {
         let first = self.nodes.len();
-        assert!(first < MAX_INDEX as usize, "kd-tree: too many nodes");
+        assert!(first < MAX_CHILD as usize, "kd-tree: too many nodes");
         self.nodes[slot] = KdNode::inner(axis as u32, pos, first as u32);
         self.nodes.extend([KdNode::leaf(0), KdNode::leaf(0)]);
         first
@@ -199,7 +199,9 @@ fn relocate(n: &KdNode, node_base: u32, leaf_base: u32) -> KdNode {
     if n.is_leaf() {
         KdNode::leaf(n.leaf_index() + leaf_base)
     } else {
-        KdNode::inner(n.axis() as u32, n.split, n.children() + node_base)
+        let left = n.children() + node_base;
+        assert!(left < MAX_CHILD, "kd-tree: too many nodes");
+        KdNode::inner(n.axis() as u32, n.split, left)
     }
 }
 
@@ -369,8 +371,10 @@ impl KdTree {
             max_depth_limit: max_depth,
             builder: params.builder,
         };
+        let mut nodes = super::node::with_leaf_ranges(out.nodes, &out.leaves);
+        super::node::mark_empty_children(&mut nodes);
         KdTree {
-            nodes: super::node::with_leaf_ranges(out.nodes, &out.leaves).into(),
+            nodes: nodes.into(),
             leaves: out.leaves,
             prim_indices: out.prim_indices,
             prims,
