@@ -91,6 +91,15 @@ impl KdNode {
         (self.bits >> 2) & 3
     }
 
+    /// [`KdNode::empty_children`] in traversal order: bit 0 when the near child is an
+    /// empty leaf, bit 1 when the far one is, for a ray whose near child is
+    /// `children() + flip`.
+    #[inline]
+    pub fn empty_near_far(&self, flip: u32) -> u32 {
+        let e = self.empty_children();
+        ((e >> flip) & 1) | (((e >> (flip ^ 1)) & 1) << 1)
+    }
+
     /// Leaf-table index of a leaf, as the builder writes it.
     #[inline]
     pub fn leaf_index(&self) -> u32 {
@@ -237,6 +246,14 @@ mod tests {
         mark_empty_children(&mut nodes);
         assert_eq!(nodes[0].empty_children(), LEFT_EMPTY);
         assert_eq!(nodes[2].empty_children(), RIGHT_EMPTY);
+        assert_eq!(
+            (nodes[0].empty_near_far(0), nodes[0].empty_near_far(1)),
+            (1, 2)
+        );
+        assert_eq!(
+            (nodes[2].empty_near_far(0), nodes[2].empty_near_far(1)),
+            (2, 1)
+        );
         for (n, (axis, split, children)) in [(0, (1, 2.0, 1)), (2, (2, -3.0, 3))] {
             let n = nodes[n];
             assert!(!n.is_leaf());

@@ -163,8 +163,8 @@ impl KdTree {
                 let negative = axes.negative[axis];
                 let near = children + negative;
                 let far = children + 1 - negative;
-                let near_empty = (empty >> negative) & 1 != 0;
-                let far_empty = (empty >> (1 - negative)) & 1 != 0;
+                let near_far = n.empty_near_far(negative);
+                let (near_empty, far_empty) = (near_far & 1 != 0, near_far & 2 != 0);
                 if BRANCHLESS {
                     use std::hint::select_unpredictable as select;
                     let near_only = t_split - slack > walk.t_far;
@@ -215,7 +215,9 @@ impl KdTree {
             }
             return None;
         }
-        if let Some(answer) = self.leaf_step::<ANY_HIT, BRANCHLESS>(&n, ray, best) {
+        if n.is_leaf()
+            && let Some(answer) = self.leaf_step::<ANY_HIT, BRANCHLESS>(&n, ray, best)
+        {
             return Some(answer);
         }
         loop {
@@ -233,8 +235,8 @@ impl KdTree {
         }
     }
 
-    /// The primitives of the leaf `n` (any node: an inner one has none) against `ray`:
-    /// closest hit folded into `best`, or with `ANY_HIT`, `Some(true)` at the first hit.
+    /// The primitives of the leaf `n` against `ray`: closest hit folded into `best`, or
+    /// with `ANY_HIT`, `Some(true)` at the first hit.
     #[inline(always)]
     fn leaf_step<const ANY_HIT: bool, const BRANCHLESS: bool>(
         &self,
@@ -242,9 +244,6 @@ impl KdTree {
         ray: &Ray,
         best: &mut Hit,
     ) -> Option<bool> {
-        if !n.is_leaf() {
-            return None;
-        }
         let prims = self.leaf_prims(n);
         let count = prims.len() as u32;
         bump(|c| c.leaf_visits += 1);

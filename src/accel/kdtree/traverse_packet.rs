@@ -319,7 +319,7 @@ impl KdTree {
                     // (the far test below could not remove a near-only lane).
                     if (lanes & !near_only).none() {
                         // An empty near leaf holds nothing for them.
-                        if (n.empty_children() >> flip) & 1 != 0 {
+                        if n.empty_near_far(flip) & 1 != 0 {
                             break 'visit;
                         }
                         node = near;
@@ -328,12 +328,7 @@ impl KdTree {
                     (near_only, hi.cmp_lt(t_near))
                 };
                 // Bit 0 for an empty near leaf, bit 1 for an empty far one.
-                let empty = n.empty_children();
-                let empty = if flip == 0 {
-                    empty
-                } else {
-                    (empty >> 1) | ((empty & 1) << 1)
-                };
+                let empty = n.empty_near_far(flip);
                 // As in the scalar path, near-only wins when both tests pass. No lane
                 // goes to an empty leaf: it holds nothing.
                 let mut near_lanes = lanes & !(far_only & !near_only);

@@ -274,19 +274,14 @@ impl KdTree {
                 if far_lanes.iter().fold(Mask::<W>::NONE, |a, &m| a | m).none() {
                     // The commonest step: every lane goes near only (an empty near
                     // leaf holds nothing for them).
-                    if (n.empty_children() >> flip) & 1 != 0 {
+                    if n.empty_near_far(flip) & 1 != 0 {
                         break 'visit;
                     }
                     node = near;
                     continue 'walk;
                 }
                 // Bit 0 for an empty near leaf, bit 1 for an empty far one.
-                let empty = n.empty_children();
-                let empty = if flip == 0 {
-                    empty
-                } else {
-                    (empty >> 1) | ((empty & 1) << 1)
-                };
+                let empty = n.empty_near_far(flip);
                 // As in the scalar path, near-only wins when both tests pass. No lane
                 // goes to an empty leaf: it holds nothing.
                 let mut near_lanes: [Mask<W>; G] =
