@@ -141,7 +141,9 @@ pub fn transpose4_lanes<F: Float>(v: [F; 4], out: &mut [[f32; 4]]) {
 }
 
 /// Per-lane u32 values.
-pub trait Uint: Copy + Debug + Send + Sync + Add<Output = Self> + Sub<Output = Self> {
+pub trait Uint:
+    Copy + Debug + Send + Sync + Add<Output = Self> + Sub<Output = Self> + BitAnd<Output = Self>
+{
     /// The comparisons' result, the same type as the float lanes' mask.
     type Mask: LaneMask;
     /// `x` in every lane.
@@ -154,6 +156,14 @@ pub trait Uint: Copy + Debug + Send + Sync + Add<Output = Self> + Sub<Output = S
     fn cmp_gt(self, o: Self) -> Self::Mask;
     /// `if_true` where `mask` is set, `if_false` elsewhere.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
+    /// Each lane shifted right by `n` (< 32) bits.
+    fn shr(self, n: u32) -> Self;
+    /// Lane `i` is `table[idx[i]]`: one load per lane, all independent, so a lane walk's
+    /// node loads are in flight together. Panics when an index is out of bounds.
+    #[inline]
+    fn gather(table: &[u32], idx: Self) -> Self {
+        Self::from_fn(|i| table[idx.lane(i) as usize])
+    }
 }
 
 /// A lane mask.
@@ -424,6 +434,10 @@ macro_rules! wide_backend {
             fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
                 mask.0.to_bits().bitselect(if_true, if_false)
             }
+            #[inline]
+            fn shr(self, n: u32) -> Self {
+                self >> n
+            }
         }
     };
 }
@@ -565,6 +579,7 @@ pub mod avx512 {
     binary!(F32x16, Div, div, _mm512_div_ps);
     binary!(U32x16, Add, add, _mm512_add_epi32);
     binary!(U32x16, Sub, sub, _mm512_sub_epi32);
+    binary!(U32x16, BitAnd, bitand, _mm512_and_si512);
 
     impl Neg for F32x16 {
         type Output = F32x16;
@@ -877,6 +892,13 @@ pub mod avx512 {
                 mask.0, if_false.0, if_true.0
             )))
         }
+        #[inline(always)]
+        fn shr(self, n: u32) -> Self {
+            avx!(U32x16(_mm512_srlv_epi32(
+                self.0,
+                _mm512_set1_epi32(n as i32)
+            )))
+        }
     }
 }
 
@@ -1040,6 +1062,34 @@ mod tests {
         transpose4_moves_every_bit::<W4>();
         transpose4_moves_every_bit::<W8>();
         transpose4_moves_every_bit::<W16>();
+    }
+
+    /// `&`, `shr` and `gather` against the scalar operations lane by lane.
+    fn uint_ops_match_scalar<W: Simd>() {
+        let words: Vec<u32> = (0..100u32)
+            .map(|i| i.wrapping_mul(0x9e37_79b9) ^ 0xf00d)
+            .collect();
+        let a = Vu::<W>::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) | 0x8000_0003);
+        let idx = Vu::<W>::from_fn(|i| (i as u32 * 37) % 100);
+        for n in [0, 1, 2, 4, 31] {
+            let r = a.shr(n);
+            for i in 0..W::LANES {
+                assert_eq!(r.lane(i), a.lane(i) >> n, "shr {n} lane {i}");
+            }
+        }
+        let m = a & Vu::<W>::splat(0xf0f0_000f);
+        let g = Vu::<W>::gather(&words, idx);
+        for i in 0..W::LANES {
+            assert_eq!(m.lane(i), a.lane(i) & 0xf0f0_000f, "and lane {i}");
+            assert_eq!(g.lane(i), words[idx.lane(i) as usize], "gather lane {i}");
+        }
+    }
+
+    #[test]
+    fn uint_ops_at_every_width() {
+        uint_ops_match_scalar::<W4>();
+        uint_ops_match_scalar::<W8>();
+        uint_ops_match_scalar::<W16>();
     }
 
     #[test]

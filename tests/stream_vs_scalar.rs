@@ -26,6 +26,7 @@ use raypack::ray::{Hit, Ray};
 use raypack::rayset::standard::standard_sets;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, View};
+use raypack::simd::{W4, W8, W16};
 
 /// A hit that is no answer, written into the output first so a ray the stream kernel
 /// forgets shows up.
@@ -36,11 +37,15 @@ const POISON: Hit = Hit {
     prim: 7,
 };
 
-/// The kd-tree with its stream queries always on the interleaved kernel: the tree's own
-/// stream queries walk ray by ray when the tree is small, and most test trees are.
-struct Interleaved<'a>(&'a KdTree);
+/// The kd-tree with its stream queries always on the lane walks at `width` lanes (4, 8
+/// or 16): the tree's own stream queries walk ray by ray when the tree is small, and
+/// most test trees are, and use the native width only.
+struct Lanes<'a>(&'a KdTree, usize);
 
-impl Accel for Interleaved<'_> {
+/// Every width of the lane walks, tested on every input.
+const WIDTHS: [usize; 3] = [4, 8, 16];
+
+impl Accel for Lanes<'_> {
     fn bounds(&self) -> Aabb {
         self.0.bounds()
     }
@@ -51,17 +56,28 @@ impl Accel for Interleaved<'_> {
         self.0.occluded(ray)
     }
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
-        self.0.intersect_interleaved(rays, hits)
+        match self.1 {
+            4 => self.0.intersect_lanes::<W4>(rays, hits),
+            8 => self.0.intersect_lanes::<W8>(rays, hits),
+            _ => self.0.intersect_lanes::<W16>(rays, hits),
+        }
     }
     fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
-        self.0.occluded_interleaved(rays, occluded)
+        match self.1 {
+            4 => self.0.occluded_lanes::<W4>(rays, occluded),
+            8 => self.0.occluded_lanes::<W8>(rays, occluded),
+            _ => self.0.occluded_lanes::<W16>(rays, occluded),
+        }
     }
 }
 
-/// Asserts the tree's stream queries, and its interleaved kernel, equal the scalar
-/// ones on `rays` ([`assert_stream_matches`]). Returns the number of closest hits.
+/// Asserts the tree's stream queries, and its lane walks at every width, equal the
+/// scalar ones on `rays` ([`assert_stream_matches`]). Returns the number of closest
+/// hits.
 fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
-    assert_stream_matches(&Interleaved(tree), rays, &format!("{what}, interleaved"));
+    for w in WIDTHS {
+        assert_stream_matches(&Lanes(tree, w), rays, &format!("{what}, {w} lanes"));
+    }
     assert_stream_matches(tree, rays, what)
 }
 
@@ -266,9 +282,9 @@ fn check_standard_sets(g: &Geometry, camera: &Camera, width: u32, height: u32, w
 fn empty_and_single_ray_batches() {
     let g = generate::random_soup(200, 0.2, 5);
     let tree = KdTree::build(&g);
-    let interleaved = Interleaved(&tree);
-    let both: [&dyn Accel; 2] = [&tree, &interleaved];
-    for a in both {
+    let lanes = WIDTHS.map(|w| Lanes(&tree, w));
+    let all: [&dyn Accel; 4] = [&tree, &lanes[0], &lanes[1], &lanes[2]];
+    for a in all {
         let (hits, occluded) = stream_answers(a, &[]);
         assert!(hits.is_empty() && occluded.is_empty());
     }
@@ -282,7 +298,7 @@ fn empty_and_single_ray_batches() {
     assert!(hit_one, "no camera ray hits the soup");
     // A stream of unusable rays only.
     let bad = unusable_rays();
-    for a in both {
+    for a in all {
         let (hits, occluded) = stream_answers(a, &bad);
         assert!(
             hits.iter()

@@ -15,7 +15,7 @@ use raypack::accel::packet::RayPacket;
 use raypack::accel::{Accel, PacketWidth};
 use raypack::ray::{Hit, Ray};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
-use raypack::simd::{W4, W8, W16};
+use raypack::simd::{Simd, W4, W8, W16};
 
 #[derive(Arbitrary, Debug)]
 struct Input {
@@ -88,20 +88,9 @@ fuzz_target!(|input: Input| {
     check_packets::<W4>(&tree, &brute, &rays);
     check_packets::<W8>(&tree, &brute, &rays);
     check_packets::<W16>(&tree, &brute, &rays);
-    let mut hits = vec![Hit::MISS; rays.len()];
-    // The interleaved kernel itself: the stream queries of a tree this small walk ray by ray.
-    tree.intersect_interleaved(&rays, &mut hits);
-    let mut occluded = vec![false; rays.len()];
-    tree.occluded_interleaved(&rays, &mut occluded);
-    for ((ray, hit), blocked) in rays.iter().zip(&hits).zip(&occluded) {
-        let want = brute.intersect(ray);
-        assert_eq!(
-            key(hit.is_hit().then_some(*hit)),
-            key(want),
-            "stream vs brute: {ray:?}"
-        );
-        assert_eq!(*blocked, brute.occluded(ray), "stream occluded: {ray:?}");
-    }
+    check_lanes::<W4>(&tree, &brute, &rays);
+    check_lanes::<W8>(&tree, &brute, &rays);
+    check_lanes::<W16>(&tree, &brute, &rays);
 });
 
 /// Every ray against brute force, scalar and in packets of `W`'s width.
@@ -132,5 +121,29 @@ fn check_packets<W: PacketWidth>(tree: &KdTree, brute: &BruteForce, rays: &[Ray]
                 "packet occluded: {ray:?}"
             );
         }
+    }
+}
+
+/// The stream kernel itself (the lane walks at `W`'s width; the stream queries of a
+/// tree this small walk ray by ray) against brute force.
+fn check_lanes<W: Simd>(tree: &KdTree, brute: &BruteForce, rays: &[Ray]) {
+    let mut hits = vec![Hit::MISS; rays.len()];
+    tree.intersect_lanes::<W>(rays, &mut hits);
+    let mut occluded = vec![false; rays.len()];
+    tree.occluded_lanes::<W>(rays, &mut occluded);
+    for ((ray, hit), blocked) in rays.iter().zip(&hits).zip(&occluded) {
+        let want = brute.intersect(ray);
+        assert_eq!(
+            key(hit.is_hit().then_some(*hit)),
+            key(want),
+            "stream ({} lanes) vs brute: {ray:?}",
+            W::LANES
+        );
+        assert_eq!(
+            *blocked,
+            brute.occluded(ray),
+            "stream ({} lanes) occluded: {ray:?}",
+            W::LANES
+        );
     }
 }

@@ -157,7 +157,7 @@ pub enum Mode {
     /// entry point ([`kdtree::traverse_tile`]).
     Tile64,
     /// Each chunk of rays as one stream ([`Accel::intersect_stream`]): for incoherent
-    /// rays, traced one ray per kernel but several in flight. The renderer traces this
+    /// rays, one ray per SIMD lane, each on its own walk. The renderer traces this
     /// mode's rays as in scalar mode.
     Stream,
 }

@@ -1,5 +1,5 @@
 //! One ray against several TriAccel records at once: lanes are triangles (the leaf
-//! kernel of the kd-tree's stream walks). Each lane repeats [`super::triaccel::TriAccel::intersect`]
+//! kernel of the kd-tree's lane walks). Each lane repeats [`super::triaccel::TriAccel::intersect`]
 //! operation by operation with the ray's components picked by the lane's axis `k`, so
 //! its `t`, `u`, `v` and edge bound are the scalar ones bit for bit; the lanes are then
 //! folded into the closest hit in leaf order with the limit the scalar loop would have

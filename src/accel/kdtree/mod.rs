@@ -16,6 +16,7 @@ pub mod build;
 pub mod node;
 pub mod stats;
 pub mod traverse;
+pub mod traverse_lanes;
 pub mod traverse_packet;
 pub mod traverse_stream;
 pub mod traverse_tile;

@@ -16,6 +16,8 @@
 //! the split word), so traversal reads a leaf's primitives without the table lookup.
 //! The nodes of a built [`super::KdTree`] are in that form.
 
+use crate::simd::{Mask, Simd, Uint, Vu};
+
 /// Axis value that marks a leaf.
 const LEAF: u32 = 3;
 
@@ -129,6 +131,47 @@ impl KdNode {
     }
 }
 
+/// The nodes as 32-bit words, node `i`'s split at `2 i` and its bits at `2 i + 1`: the
+/// table the lane walks gather from (traverse_lanes.rs).
+pub fn as_words(nodes: &[KdNode]) -> &[u32] {
+    // SAFETY: `KdNode` is `repr(C)` with two 4-byte fields and no padding (its size is
+    // asserted above), so `n` nodes are `2 n` initialized, 4-byte aligned words, and
+    // every bit pattern is a valid `u32`. The borrow keeps `nodes` alive and unchanged.
+    unsafe { std::slice::from_raw_parts(nodes.as_ptr().cast::<u32>(), 2 * nodes.len()) }
+}
+
+/// The words of one node per lane ([`as_words`]'s odd words), decoded in SIMD: the one
+/// vector reading of the layout above.
+pub struct NodeLanes<W: Simd> {
+    /// The lane's node is a leaf.
+    pub leaf: Mask<W>,
+    /// Split axis 0 (x), and axis 1 (y); an inner node with neither splits z.
+    pub axis: [Mask<W>; 2],
+    /// Index of the left child of an inner node.
+    pub children: Vu<W>,
+    /// The left child is an empty leaf, and the right one ([`LEFT_EMPTY`],
+    /// [`RIGHT_EMPTY`]).
+    pub empty: [Mask<W>; 2],
+}
+
+impl<W: Simd> NodeLanes<W> {
+    /// Decodes the lanes' node words.
+    #[inline(always)]
+    pub fn decode(bits: Vu<W>) -> NodeLanes<W> {
+        let splat = Vu::<W>::splat;
+        let axis = bits & splat(3);
+        let above = |k: u32| axis.cmp_gt(splat(k));
+        let (a0, a1, a2) = (above(0), above(1), above(2));
+        let flag = |f: u32| (bits & splat(f << 2)).cmp_gt(splat(0));
+        NodeLanes {
+            leaf: a2,
+            axis: [!a0, a0 & !a1],
+            children: bits.shr(4),
+            empty: [flag(LEFT_EMPTY), flag(RIGHT_EMPTY)],
+        }
+    }
+}
+
 /// `nodes` with every leaf-table leaf replaced by its `[first, count]` range from
 /// `leaves`, so traversal skips one dependent load per leaf (the table is 8 bytes per
 /// leaf, scattered like the nodes; half of Sponza's leaves are empty and now cost no
@@ -213,6 +256,47 @@ impl std::fmt::Debug for AlignedNodes {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`NodeLanes::decode`] against the scalar accessors, for leaves and inner nodes of
+    /// every axis and empty-child pattern, lanes mixed.
+    fn lanes_decode_like_scalar<W: Simd>() {
+        use crate::simd::{LaneMask, Uint};
+        let mut nodes = vec![KdNode::leaf_range(5, 3), KdNode::leaf_range(MAX_INDEX, 0)];
+        for axis in 0..3 {
+            for empty in 0..4u32 {
+                let mut n = KdNode::inner(axis, 1.5, MAX_CHILD - empty);
+                n.bits |= empty << 2;
+                nodes.push(n);
+            }
+        }
+        let words = as_words(&nodes);
+        for start in 0..nodes.len() {
+            let pick = |i: usize| (start + i) % nodes.len();
+            let bits = Vu::<W>::from_fn(|i| words[2 * pick(i) + 1]);
+            let d = NodeLanes::<W>::decode(bits);
+            for i in 0..W::LANES {
+                let n = &nodes[pick(i)];
+                let lane = |m: Mask<W>| m.bits() >> i & 1 == 1;
+                assert_eq!(words[2 * pick(i)], n.split.to_bits());
+                assert_eq!(lane(d.leaf), n.is_leaf(), "node {n:?}");
+                if !n.is_leaf() {
+                    assert_eq!(lane(d.axis[0]), n.axis() == 0, "node {n:?}");
+                    assert_eq!(lane(d.axis[1]), n.axis() == 1, "node {n:?}");
+                    assert_eq!(d.children.lane(i), n.children(), "node {n:?}");
+                    let e = n.empty_children();
+                    assert_eq!(lane(d.empty[0]), e & LEFT_EMPTY != 0, "node {n:?}");
+                    assert_eq!(lane(d.empty[1]), e & RIGHT_EMPTY != 0, "node {n:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_decode_at_every_width() {
+        lanes_decode_like_scalar::<crate::simd::W4>();
+        lanes_decode_like_scalar::<crate::simd::W8>();
+        lanes_decode_like_scalar::<crate::simd::W16>();
+    }
 
     #[test]
     fn bits_round_trip() {

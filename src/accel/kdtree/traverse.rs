@@ -43,7 +43,7 @@ const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
 pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 
-/// The stream walks test groups of at least this many triangles of a leaf in lanes
+/// The lane walks (stream queries) test groups of at least this many triangles of a leaf in lanes
 /// (one triangle alone is faster scalar: perf/stream.md).
 pub const LEAF_LANES_MIN: u32 = 2;
 
@@ -77,7 +77,7 @@ impl KdTree {
             return false;
         }
         loop {
-            if let Some(answer) = self.step::<ANY_HIT, false, false>(&mut walk, ray, best) {
+            if let Some(answer) = self.step::<ANY_HIT>(&mut walk, ray, best) {
                 return answer;
             }
         }
@@ -101,20 +101,12 @@ impl KdTree {
 
     /// One step of `ray`'s walk: an inner node, or a leaf and the stack pops that find
     /// the next node. `None` while the walk goes on; `Some(answer)` at its end (true
-    /// when `ANY_HIT` found a hit). The scalar path loops over it; the stream kernel
-    /// advances several walks in turn, and with `PREFETCH` starts loading the node
-    /// each walk goes to next, so the loads of several rays overlap.
-    ///
-    /// `BRANCHLESS` picks the next node of a crossing ray with selects and a
-    /// conditional push instead of branches: the same values, so the same walk. The
-    /// scalar path keeps the branches (a correct guess lets the CPU start the next
-    /// node's load early; measured 5% faster on Sponza diffuse); interleaved walks need
-    /// the selects, since one branch then sees several rays' unrelated turns and
-    /// mispredicts more (perf/stream.md). The same walks (the stream's) test a leaf's
-    /// triangles in [`LeafLanes`] lanes, same answers; the scalar path tests them one by
-    /// one.
+    /// when `ANY_HIT` found a hit). The near/far choice branches: a correct guess lets
+    /// the CPU start the next node's load before the split test resolves (selects
+    /// measured 5% slower on Sponza diffuse). The lane walks (traverse_lanes.rs) repeat
+    /// this step in SIMD.
     #[inline(always)]
-    pub(super) fn step<const ANY_HIT: bool, const PREFETCH: bool, const BRANCHLESS: bool>(
+    pub(super) fn step<const ANY_HIT: bool>(
         &self,
         walk: &mut Walk,
         ray: &Ray,
@@ -165,20 +157,7 @@ impl KdTree {
                 let far = children + 1 - negative;
                 let near_far = n.empty_near_far(negative);
                 let (near_empty, far_empty) = (near_far & 1 != 0, near_far & 2 != 0);
-                if BRANCHLESS {
-                    use std::hint::select_unpredictable as select;
-                    let near_only = t_split - slack > walk.t_far;
-                    let far_only = !near_only && t_split + slack < walk.t_near;
-                    let both = !near_only && !far_only;
-                    let entry = max_gt(t_split - slack, walk.t_near);
-                    // An empty far child is not pushed. Skipping an empty near child
-                    // for the far one, as the branches below do, costs more here than
-                    // the leaf visit it saves (perf/stream.md).
-                    walk.stack
-                        .push_if(both & !far_empty, (far, entry, walk.t_far));
-                    walk.node = select(far_only, far, near);
-                    walk.t_far = select(both, min_lt(t_split + slack, walk.t_far), walk.t_far);
-                } else if t_split - slack > walk.t_far {
+                if t_split - slack > walk.t_far {
                     if near_empty {
                         break 'visit;
                     }
@@ -210,13 +189,27 @@ impl KdTree {
                     }
                 }
             }
-            if PREFETCH {
-                self.prefetch_node(walk.node);
-            }
             return None;
         }
+        self.leave_node::<ANY_HIT, false>(walk, &n, ray, best)
+    }
+
+    /// The end of a step at `n`, a leaf or an inner node whose ray goes only to empty
+    /// children: the leaf's primitives (if a leaf), then the pops that find the next
+    /// node. `None` while the walk goes on at `walk.node`; `Some(answer)` at its end.
+    /// Shared by [`KdTree::step`] and the lane walks (traverse_lanes.rs), which decide
+    /// inner nodes in SIMD and end their steps here, lane by lane; `LEAF_LANES` tests a
+    /// leaf's triangles in lanes, as the lane walks do.
+    #[inline(always)]
+    pub(super) fn leave_node<const ANY_HIT: bool, const LEAF_LANES: bool>(
+        &self,
+        walk: &mut Walk,
+        n: &super::node::KdNode,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> Option<bool> {
         if n.is_leaf()
-            && let Some(answer) = self.leaf_step::<ANY_HIT, BRANCHLESS>(&n, ray, best)
+            && let Some(answer) = self.leaf_step::<ANY_HIT, LEAF_LANES>(n, ray, best)
         {
             return Some(answer);
         }
@@ -228,9 +221,6 @@ impl KdTree {
                 continue;
             }
             (walk.node, walk.t_near, walk.t_far) = (next, entry, exit);
-            if PREFETCH {
-                self.prefetch_node(walk.node);
-            }
             return None;
         }
     }
@@ -238,7 +228,7 @@ impl KdTree {
     /// The primitives of the leaf `n` against `ray`: closest hit folded into `best`, or
     /// with `ANY_HIT`, `Some(true)` at the first hit.
     #[inline(always)]
-    fn leaf_step<const ANY_HIT: bool, const BRANCHLESS: bool>(
+    fn leaf_step<const ANY_HIT: bool, const LEAF_LANES: bool>(
         &self,
         n: &super::node::KdNode,
         ray: &Ray,
@@ -258,9 +248,9 @@ impl KdTree {
                 }
             } else {
                 bump(|c| c.prim_tests += count as u64);
-                // The stream walks test a leaf's triangles in lanes (perf/stream.md);
+                // The lane walks test a leaf's triangles in lanes (perf/stream.md);
                 // the scalar path keeps one test per primitive.
-                if BRANCHLESS && count >= LEAF_LANES_MIN {
+                if LEAF_LANES && count >= LEAF_LANES_MIN {
                     for group in prims.chunks(LeafLanes::LANES) {
                         if group.len() as u32 >= LEAF_LANES_MIN
                             && group.iter().all(|&p| p < self.prims.sphere_base)
@@ -277,23 +267,6 @@ impl KdTree {
             }
         }
         None
-    }
-
-    /// Asks the CPU to start loading node `node`'s cache line; a hint only.
-    #[inline(always)]
-    fn prefetch_node(&self, node: u32) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(n) = self.nodes.get(node as usize) {
-            // SAFETY: `_mm_prefetch` only hints the cache (it never faults, even on a
-            // bad address), and the pointer comes from a live reference into `nodes`.
-            unsafe {
-                core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
-                    (n as *const super::node::KdNode).cast::<i8>(),
-                )
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = node;
     }
 }
 
@@ -321,14 +294,6 @@ impl<T: Copy> Stack<T> {
         self.len += 1;
     }
 
-    /// Writes `item` in the next free slot and keeps it only when `keep`: a push
-    /// without a branch. Panics when full, as [`Stack::push`].
-    #[inline]
-    pub(super) fn push_if(&mut self, keep: bool, item: T) {
-        self.items[self.len].write(item);
-        self.len += keep as usize;
-    }
-
     /// Drops every entry.
     #[inline]
     pub(super) fn clear(&mut self) {
@@ -348,11 +313,11 @@ impl<T: Copy> Stack<T> {
 /// One ray's kd-tree walk between steps: its per-axis quantities, its stack, the node
 /// it goes to next and its interval there.
 pub(super) struct Walk {
-    axes: RayAxes,
-    stack: Stack<(u32, f32, f32)>,
-    node: u32,
-    t_near: f32,
-    t_far: f32,
+    pub(super) axes: RayAxes,
+    pub(super) stack: Stack<(u32, f32, f32)>,
+    pub(super) node: u32,
+    pub(super) t_near: f32,
+    pub(super) t_far: f32,
 }
 
 impl Walk {
@@ -378,18 +343,18 @@ impl Walk {
 
 /// A ray's per-axis quantities, computed once per ray and indexed by a node's axis
 /// (`axis & 3`, so the index needs no bounds check; the fourth entry is never read).
-struct RayAxes {
-    org: [f32; 4],
-    inv: [f32; 4],
+pub(super) struct RayAxes {
+    pub(super) org: [f32; 4],
+    pub(super) inv: [f32; 4],
     /// Half-width of the band around a split plane where the ray counts as on both
     /// sides: `(coord_max[axis] + max_abs(org)) * PLANE_SLACK`.
     margin: [f32; 4],
     /// `margin / |d|`: the band as an interval of `t` around the split distance.
-    slack: [f32; 4],
+    pub(super) slack: [f32; 4],
     /// 1 where the direction is negative (near is the right child), else 0.
     negative: [u32; 4],
     /// The direction component is +0.0 or -0.0.
-    zero: [bool; 4],
+    pub(super) zero: [bool; 4],
 }
 
 impl RayAxes {
