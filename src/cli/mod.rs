@@ -1,6 +1,7 @@
 //! Subcommands, one file each.
 
 pub mod bench;
+pub mod huge_pages;
 pub mod info;
 pub mod rays;
 pub mod render;
