@@ -213,15 +213,10 @@ impl KdTree {
         {
             return Some(answer);
         }
-        loop {
-            let Some((next, entry, exit)) = walk.stack.pop() else {
-                return Some(false);
-            };
-            if !ANY_HIT && entry > best.t {
-                continue;
-            }
-            (walk.node, walk.t_near, walk.t_far) = (next, entry, exit);
-            return None;
+        if walk.pop::<ANY_HIT>(best) {
+            None
+        } else {
+            Some(false)
         }
     }
 
@@ -321,6 +316,23 @@ pub(super) struct Walk {
 }
 
 impl Walk {
+    /// Pops the stack down to the next node the ray still needs (closest hit: one that
+    /// starts no later than `best`), and goes there with its interval; false when the
+    /// stack runs out and the walk is over.
+    #[inline(always)]
+    pub(super) fn pop<const ANY_HIT: bool>(&mut self, best: &Hit) -> bool {
+        loop {
+            let Some((next, entry, exit)) = self.stack.pop() else {
+                return false;
+            };
+            if !ANY_HIT && entry > best.t {
+                continue;
+            }
+            (self.node, self.t_near, self.t_far) = (next, entry, exit);
+            return true;
+        }
+    }
+
     /// An idle walk, for [`KdTree::start_walk`] to set up.
     #[inline]
     pub(super) fn new() -> Walk {

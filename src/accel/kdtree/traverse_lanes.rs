@@ -233,8 +233,18 @@ impl KdTree {
         }
         store_f::<W>(new_near, &mut st.t_near);
         store_f::<W>(new_far, &mut st.t_far);
-        // Leaves and stopped steps, lane by lane with the scalar code.
-        for i in lanes_of(((live_m & n.leaf) | stop).bits()) {
+        // Steps that went only to empty children pop at once; then the leaves, lane by
+        // lane with the scalar code (two loops, so neither branches on which it is).
+        for i in lanes_of(stop.bits()) {
+            let walk = &mut g.walks[i];
+            if walk.pop::<ANY_HIT>(&g.best[i]) {
+                g.st.load_walk(i, walk, &g.best[i]);
+            } else {
+                done(g.ray_of[i], false, g.best[i]);
+                self.start_lane::<ANY_HIT>(g, i, rays, next, done);
+            }
+        }
+        for i in lanes_of((live_m & n.leaf).bits()) {
             let walk = &mut g.walks[i];
             let at = g.st.node[i];
             (walk.node, walk.t_near, walk.t_far) = (at, g.st.t_near[i], g.st.t_far[i]);
