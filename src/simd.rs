@@ -164,6 +164,17 @@ pub trait Uint:
     fn gather(table: &[u32], idx: Self) -> Self {
         Self::from_fn(|i| table[idx.lane(i) as usize])
     }
+    /// Lane `i` of the first vector is `table[2 idx[i]]`, of the second
+    /// `table[2 idx[i] + 1]`: the two words of an 8-byte record per lane. Panics when an
+    /// index is out of bounds.
+    #[inline]
+    fn gather_pairs(table: &[u32], idx: Self) -> (Self, Self) {
+        let idx2 = idx + idx;
+        (
+            Self::gather(table, idx2),
+            Self::gather(table, idx2 + Self::splat(1)),
+        )
+    }
 }
 
 /// A lane mask.
@@ -892,6 +903,34 @@ pub mod avx512 {
                 mask.0, if_false.0, if_true.0
             )))
         }
+        /// One 8-byte load per lane (half the loads of two word gathers), then the
+        /// even and the odd words picked out with two permutes.
+        #[inline(always)]
+        fn gather_pairs(table: &[u32], idx: Self) -> (Self, Self) {
+            let pair = |i: usize| {
+                let k = 2 * idx.lane(i) as usize;
+                let w = &table[k..k + 2];
+                u64::from(w[0]) | u64::from(w[1]) << 32
+            };
+            let lo: [u64; 8] = std::array::from_fn(pair);
+            let hi: [u64; 8] = std::array::from_fn(|i| pair(i + 8));
+            // SAFETY: `[u64; 8]` and `__m512i` have the same size, every bit pattern is
+            // valid for both; AVX-512F is enabled (see `avx!`).
+            unsafe {
+                let (lo, hi) = (
+                    std::mem::transmute::<[u64; 8], __m512i>(lo),
+                    std::mem::transmute::<[u64; 8], __m512i>(hi),
+                );
+                let even =
+                    _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+                let odd =
+                    _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+                (
+                    U32x16(_mm512_permutex2var_epi32(lo, even, hi)),
+                    U32x16(_mm512_permutex2var_epi32(lo, odd, hi)),
+                )
+            }
+        }
         #[inline(always)]
         fn shr(self, n: u32) -> Self {
             avx!(U32x16(_mm512_srlv_epi32(
@@ -1064,7 +1103,7 @@ mod tests {
         transpose4_moves_every_bit::<W16>();
     }
 
-    /// `&`, `shr` and `gather` against the scalar operations lane by lane.
+    /// `&`, `shr`, `gather` and `gather_pairs` against the scalar operations lane by lane.
     fn uint_ops_match_scalar<W: Simd>() {
         let words: Vec<u32> = (0..100u32)
             .map(|i| i.wrapping_mul(0x9e37_79b9) ^ 0xf00d)
@@ -1079,9 +1118,14 @@ mod tests {
         }
         let m = a & Vu::<W>::splat(0xf0f0_000f);
         let g = Vu::<W>::gather(&words, idx);
+        let half = Vu::<W>::from_fn(|i| (i as u32 * 13) % 50);
+        let (even, odd) = Vu::<W>::gather_pairs(&words, half);
         for i in 0..W::LANES {
             assert_eq!(m.lane(i), a.lane(i) & 0xf0f0_000f, "and lane {i}");
             assert_eq!(g.lane(i), words[idx.lane(i) as usize], "gather lane {i}");
+            let k = 2 * half.lane(i) as usize;
+            assert_eq!(even.lane(i), words[k], "gather_pairs even lane {i}");
+            assert_eq!(odd.lane(i), words[k + 1], "gather_pairs odd lane {i}");
         }
     }
 

@@ -177,9 +177,9 @@ impl KdTree {
         let st = &mut g.st;
         // Idle lanes sit at the root, a valid index.
         let node = Vu::<W>::from_fn(|i| st.node[i]);
-        let idx2 = node + node;
-        let split = Vf::<W>::from_bits(Vu::<W>::gather(words, idx2));
-        let n = NodeLanes::<W>::decode(Vu::<W>::gather(words, idx2 + one));
+        let (split, bits) = Vu::<W>::gather_pairs(words, node);
+        let split = Vf::<W>::from_bits(split);
+        let n = NodeLanes::<W>::decode(bits);
         let live_m = Mask::<W>::from_bits(g.live);
         let inner = live_m & !n.leaf;
         let pick = |v: &[[f32; MAX_LANES]; 3]| {
