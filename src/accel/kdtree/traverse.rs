@@ -366,7 +366,7 @@ pub(super) struct RayAxes {
     /// 1 where the direction is negative (near is the right child), else 0.
     negative: [u32; 4],
     /// The direction component is +0.0 or -0.0.
-    pub(super) zero: [bool; 4],
+    zero: [bool; 4],
 }
 
 impl RayAxes {
