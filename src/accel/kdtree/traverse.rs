@@ -191,25 +191,9 @@ impl KdTree {
             }
             return None;
         }
-        self.leave_node::<ANY_HIT, false>(walk, &n, ray, best)
-    }
-
-    /// The end of a step at `n`, a leaf or an inner node whose ray goes only to empty
-    /// children: the leaf's primitives (if a leaf), then the pops that find the next
-    /// node. `None` while the walk goes on at `walk.node`; `Some(answer)` at its end.
-    /// Shared by [`KdTree::step`] and the lane walks (traverse_lanes.rs), which decide
-    /// inner nodes in SIMD and end their steps here, lane by lane; `LEAF_LANES` tests a
-    /// leaf's triangles in lanes, as the lane walks do.
-    #[inline(always)]
-    pub(super) fn leave_node<const ANY_HIT: bool, const LEAF_LANES: bool>(
-        &self,
-        walk: &mut Walk,
-        n: &super::node::KdNode,
-        ray: &Ray,
-        best: &mut Hit,
-    ) -> Option<bool> {
+        // A leaf's primitives, then the pops that find the next node.
         if n.is_leaf()
-            && let Some(answer) = self.leaf_step::<ANY_HIT, LEAF_LANES>(n, ray, best)
+            && let Some(answer) = self.leaf_step::<ANY_HIT, false>(&n, ray, best)
         {
             return Some(answer);
         }
@@ -221,9 +205,10 @@ impl KdTree {
     }
 
     /// The primitives of the leaf `n` against `ray`: closest hit folded into `best`, or
-    /// with `ANY_HIT`, `Some(true)` at the first hit.
+    /// with `ANY_HIT`, `Some(true)` at the first hit. `LEAF_LANES` tests the triangles
+    /// in lanes, as the lane walks (traverse_lanes.rs) do; the scalar step one by one.
     #[inline(always)]
-    fn leaf_step<const ANY_HIT: bool, const LEAF_LANES: bool>(
+    pub(super) fn leaf_step<const ANY_HIT: bool, const LEAF_LANES: bool>(
         &self,
         n: &super::node::KdNode,
         ray: &Ray,

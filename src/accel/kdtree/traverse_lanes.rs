@@ -5,7 +5,7 @@
 //! loads each lane's node ([`Uint::gather`]: `W` independent loads in flight, so the
 //! cache misses of `W` rays overlap), decides the inner-node step of every lane in
 //! SIMD without a branch, and ends the steps at leaves and empty children lane by lane
-//! with the scalar code (`KdTree::leave_node`). A lane whose walk ends takes the
+//! with the scalar code (`KdTree::leaf_step`, `Walk::pop`). A lane whose walk ends takes the
 //! next ray of the stream.
 //!
 //! Invariant, so each ray's answer is the scalar path's bit for bit: a lane repeats
@@ -52,7 +52,7 @@ impl Lanes {
         }
     }
 
-    /// Lane `i` from `walk` (after [`KdTree::start_walk`] or [`KdTree::leave_node`]).
+    /// Lane `i` from `walk` (after [`KdTree::start_walk`] or [`Walk::pop`]).
     #[inline]
     fn load_walk(&mut self, i: usize, walk: &Walk, best: &Hit) {
         self.node[i] = walk.node;
@@ -234,29 +234,40 @@ impl KdTree {
         store_f::<W>(new_near, &mut st.t_near);
         store_f::<W>(new_far, &mut st.t_far);
         // Steps that went only to empty children pop at once; then the leaves, lane by
-        // lane with the scalar code (two loops, so neither branches on which it is).
+        // lane with the scalar code, and their pops (two loops, so neither branches on
+        // which kind of lane it holds).
         for i in lanes_of(stop.bits()) {
-            let walk = &mut g.walks[i];
-            if walk.pop::<ANY_HIT>(&g.best[i]) {
-                g.st.load_walk(i, walk, &g.best[i]);
-            } else {
-                done(g.ray_of[i], false, g.best[i]);
-                self.start_lane::<ANY_HIT>(g, i, rays, next, done);
-            }
+            self.pop_lane::<ANY_HIT>(g, i, rays, next, done);
         }
         for i in lanes_of((live_m & n.leaf).bits()) {
-            let walk = &mut g.walks[i];
-            let at = g.st.node[i];
-            (walk.node, walk.t_near, walk.t_far) = (at, g.st.t_near[i], g.st.t_far[i]);
+            let here = self.nodes[g.st.node[i] as usize];
             let ray = &rays[g.ray_of[i]];
-            let here = self.nodes[at as usize];
-            match self.leave_node::<ANY_HIT, true>(walk, &here, ray, &mut g.best[i]) {
-                None => g.st.load_walk(i, walk, &g.best[i]),
-                Some(answer) => {
-                    done(g.ray_of[i], answer, g.best[i]);
-                    self.start_lane::<ANY_HIT>(g, i, rays, next, done);
-                }
+            if let Some(answer) = self.leaf_step::<ANY_HIT, true>(&here, ray, &mut g.best[i]) {
+                done(g.ray_of[i], answer, g.best[i]);
+                self.start_lane::<ANY_HIT>(g, i, rays, next, done);
+            } else {
+                self.pop_lane::<ANY_HIT>(g, i, rays, next, done);
             }
+        }
+    }
+
+    /// Lane `i` goes on at the next node its stack holds ([`Walk::pop`]); when none is
+    /// left its ray is done (no any-hit found) and the lane takes the next ray.
+    #[inline(always)]
+    fn pop_lane<const ANY_HIT: bool>(
+        &self,
+        g: &mut Group,
+        i: usize,
+        rays: &[Ray],
+        next: &mut usize,
+        done: &mut impl FnMut(usize, bool, Hit),
+    ) {
+        let walk = &mut g.walks[i];
+        if walk.pop::<ANY_HIT>(&g.best[i]) {
+            g.st.load_walk(i, walk, &g.best[i]);
+        } else {
+            done(g.ray_of[i], false, g.best[i]);
+            self.start_lane::<ANY_HIT>(g, i, rays, next, done);
         }
     }
 }
