@@ -108,6 +108,9 @@ pub trait Float:
     fn abs(self) -> Self;
     /// Correctly rounded square root per lane, as the scalar `f32::sqrt`.
     fn sqrt(self) -> Self;
+    /// `self * a + b` per lane, rounded as [`mul_add`] rounds it (once where the target
+    /// has FMA, else twice), so packet kernels reproduce the scalar ones bit for bit.
+    fn mul_add(self, a: Self, b: Self) -> Self;
     /// IEEE-style minimum (a NaN operand gives the other one).
     fn min(self, o: Self) -> Self;
     /// IEEE-style maximum (a NaN operand gives the other one).
@@ -124,6 +127,18 @@ pub trait Float:
     fn from_bits(u: Self::U) -> Self;
     /// `if_true` where `mask` is set, `if_false` elsewhere.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
+}
+
+/// `a * b + c`, rounded once where the target has FMA (every AVX2 and AVX-512 CPU) and
+/// twice elsewhere: the scalar twin of [`Float::mul_add`], which rounds the same way at
+/// every width.
+#[inline(always)]
+pub fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+    if cfg!(target_feature = "fma") {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
 }
 
 /// [`Float::transpose8`] lane by lane, at any width.
@@ -392,6 +407,14 @@ macro_rules! wide_backend {
             #[inline]
             fn sqrt(self) -> Self {
                 wide::$f::sqrt(self)
+            }
+            #[inline]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                if cfg!(target_feature = "fma") {
+                    wide::$f::mul_add(self, a, b)
+                } else {
+                    self * a + b
+                }
             }
             #[inline]
             fn min(self, o: Self) -> Self {
@@ -835,6 +858,11 @@ pub mod avx512 {
         fn sqrt(self) -> Self {
             avx!(F32x16(_mm512_sqrt_ps(self.0)))
         }
+        /// AVX-512 implies FMA: one rounding, as [`super::mul_add`].
+        #[inline(always)]
+        fn mul_add(self, a: Self, b: Self) -> Self {
+            avx!(F32x16(_mm512_fmadd_ps(self.0, a.0, b.0)))
+        }
         /// `vminps` keeps the second operand on NaN; `wide` (and this) then takes `self`
         /// where `o` is NaN.
         #[inline(always)]
@@ -1228,6 +1256,56 @@ mod tests {
                 bits_n(N::select(m, a_n, b_n))
             );
         }
+    }
+
+    /// `Float::mul_add` rounds as the scalar `mul_add` does, lane by lane: once where
+    /// the target has FMA (a product that overflows or cancels shows it), twice
+    /// elsewhere. NaN results need only be NaN in both.
+    fn mul_add_matches_scalar<W: Simd>() {
+        let xs = [
+            0.0,
+            -0.0,
+            1.0 + f32::EPSILON,
+            -(1.0 - f32::EPSILON / 2.0),
+            -1.0,
+            3.0e7,
+            -2.5e-8,
+            f32::MAX,
+            f32::MIN_POSITIVE / 8.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            1.0 / 3.0,
+        ];
+        let n = xs.len();
+        for (ka, &a) in xs.iter().enumerate() {
+            for &b in &xs {
+                let c = Vf::<W>::from_fn(|i| xs[(ka + i) % n]);
+                let got = Vf::<W>::splat(a).mul_add(Vf::<W>::splat(b), c);
+                for i in 0..W::LANES {
+                    let want = mul_add(a, b, c.lane(i));
+                    let got = got.lane(i);
+                    assert!(
+                        got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                        "{a:?} * {b:?} + {:?}: {got:?} against {want:?}",
+                        c.lane(i)
+                    );
+                }
+            }
+        }
+        // One rounding shows: (1 + e)(1 - e) - 1 is -e^2 fused and 0 unfused.
+        let (p, q) = (1.0 + f32::EPSILON, 1.0 - f32::EPSILON);
+        let fused = Vf::<W>::splat(p)
+            .mul_add(Vf::<W>::splat(q), Vf::<W>::splat(-1.0))
+            .lane(0);
+        assert_eq!(fused != 0.0, cfg!(target_feature = "fma"));
+    }
+
+    #[test]
+    fn mul_add_at_every_width() {
+        mul_add_matches_scalar::<W4>();
+        mul_add_matches_scalar::<W8>();
+        mul_add_matches_scalar::<W16>();
     }
 
     #[test]

@@ -33,10 +33,10 @@ struct Lanes {
     t_far: [f32; MAX_LANES],
     /// The lane's best `t` so far (for the skip to a far child past it).
     best_t: [f32; MAX_LANES],
-    /// Per axis: the origin, `1 / d` and the plane slack in `t` ([`Walk`]'s axes).
-    org: [[f32; MAX_LANES]; 3],
+    /// Per axis: `1 / d` and the offsets of the band's ends in `t` ([`Walk`]'s axes).
     inv: [[f32; MAX_LANES]; 3],
-    slack: [[f32; MAX_LANES]; 3],
+    lo_off: [[f32; MAX_LANES]; 3],
+    hi_off: [[f32; MAX_LANES]; 3],
 }
 
 impl Lanes {
@@ -46,9 +46,9 @@ impl Lanes {
             t_near: [0.0; MAX_LANES],
             t_far: [0.0; MAX_LANES],
             best_t: [f32::INFINITY; MAX_LANES],
-            org: [[0.0; MAX_LANES]; 3],
             inv: [[0.0; MAX_LANES]; 3],
-            slack: [[0.0; MAX_LANES]; 3],
+            lo_off: [[0.0; MAX_LANES]; 3],
+            hi_off: [[0.0; MAX_LANES]; 3],
         }
     }
 
@@ -148,9 +148,9 @@ impl KdTree {
                 g.best[i] = Hit::MISS;
                 g.st.load_walk(i, walk, &g.best[i]);
                 for a in 0..3 {
-                    g.st.org[a][i] = walk.axes.org[a];
                     g.st.inv[a][i] = walk.axes.inv[a];
-                    g.st.slack[a][i] = walk.axes.slack[a];
+                    g.st.lo_off[a][i] = walk.axes.lo_off[a];
+                    g.st.hi_off[a][i] = walk.axes.hi_off[a];
                 }
                 g.ray_of[i] = r;
                 g.live |= 1 << i;
@@ -189,7 +189,7 @@ impl KdTree {
                 select(n.axis[1], vf::<W>(&v[1]), vf::<W>(&v[2])),
             )
         };
-        let (o, inv, slack) = (pick(&st.org), pick(&st.inv), pick(&st.slack));
+        let (inv, lo_off, hi_off) = (pick(&st.inv), pick(&st.lo_off), pick(&st.hi_off));
         let (t_near, t_far) = (vf::<W>(&st.t_near), vf::<W>(&st.t_far));
         // Near is the right child where the direction is negative (never zero here).
         let negative = inv.cmp_lt(Vf::<W>::ZERO);
@@ -200,8 +200,7 @@ impl KdTree {
         let near_empty = (negative & right_empty) | (!negative & left_empty);
         let far_empty = (negative & left_empty) | (!negative & right_empty);
         // The scalar step's tests, in its order.
-        let t_split = (split - o) * inv;
-        let (lo, hi) = (t_split - slack, t_split + slack);
+        let (lo, hi) = (split.mul_add(inv, lo_off), split.mul_add(inv, hi_off));
         let near_only = lo.cmp_gt(t_far);
         let far_only = !near_only & hi.cmp_lt(t_near);
         let both = !near_only & !far_only;

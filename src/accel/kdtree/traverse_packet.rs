@@ -9,7 +9,7 @@
 //!
 //! Invariants, so each lane returns exactly what the scalar traversal
 //! ([`super::traverse`]) returns for its ray:
-//! - Every per-lane quantity (the clipped interval, the split distance and its slack,
+//! - Every per-lane quantity (the clipped interval, the band around the split distance,
 //!   the near/far decisions, the intervals pushed) is computed with the scalar path's
 //!   operations in its order, so a lane is active at exactly the nodes the scalar ray
 //!   visits, with the same interval, in the same front-to-back order.
@@ -264,7 +264,12 @@ impl KdTree {
         let o_max = max_abs(&rays.org);
         let margins: [Vf<W>; 3] =
             std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
+        // The band's ends at a plane as `split * inv + off` (`RayAxes`).
         let slacks: [Vf<W>; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
+        let lo_off: [Vf<W>; 3] =
+            std::array::from_fn(|a| -(rays.org[a] * rays.inv_dir[a]) - slacks[a]);
+        let hi_off: [Vf<W>; 3] =
+            std::array::from_fn(|a| -(rays.org[a] * rays.inv_dir[a]) + slacks[a]);
         let mut stack = Stack::<Entry<W>>::new();
         'walk: loop {
             let n = self.nodes[node as usize];
@@ -292,10 +297,8 @@ impl KdTree {
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
                 let margin = margins[axis];
-                let t_split = (split - o) * inv;
-                let slack = slacks[axis];
-                let lo = t_split - slack;
-                let hi = t_split + slack;
+                let lo = split.mul_add(inv, lo_off[axis]);
+                let hi = split.mul_add(inv, hi_off[axis]);
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
                 let (near_only, far_only) = if any_zero[axis] {

@@ -5,9 +5,11 @@
 //!
 //! From the root, the whole tile descends while a conservative bound decides for all its
 //! rays at once: per axis, the interval of the origins and of the reciprocal directions
-//! gives an interval holding every lane's split distance (f32 subtraction and
-//! multiplication are monotone, so the corner products bound the lanes' own rounded
-//! values), widened by the largest plane slack. Where that interval lies past every
+//! gives an interval holding every lane's exact split distance (the corner products,
+//! widened by [`PLANE_SLACK`] of their size for their own rounding), widened again by
+//! twice the largest plane slack: a lane's band ends, `split * inv + off` rounded
+//! ([`super::traverse`]), lie within a third of its slack of the exact ones, so the
+//! widened interval holds each lane's rounded band. Where that interval lies past every
 //! lane's `t_far`, every lane would go near only; where it lies before every lane's
 //! `t_near`, far only. From the first node where the bound cannot decide, the groups
 //! walk on together (Overbeck, Ramamoorthi and Mark 2008, partition traversal): one
@@ -234,14 +236,20 @@ impl KdTree {
         let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
         let coord_max = self.coord_max();
         let o_max: [Vf<W>; G] = std::array::from_fn(|g| max_abs(&rays(g).org));
-        let org: [[Vf<W>; G]; 3] = std::array::from_fn(|a| std::array::from_fn(|g| rays(g).org[a]));
         let inv: [[Vf<W>; G]; 3] =
             std::array::from_fn(|a| std::array::from_fn(|g| rays(g).inv_dir[a]));
-        let slacks: [[Vf<W>; G]; 3] = std::array::from_fn(|a| {
-            std::array::from_fn(|g| {
-                (splat(coord_max[a]) + o_max[g]) * splat(PLANE_SLACK) * inv[a][g].abs()
+        // The band's ends at a plane as `split * inv + off` (`RayAxes`).
+        let offs = |sign: f32| -> [[Vf<W>; G]; 3] {
+            std::array::from_fn(|a| {
+                std::array::from_fn(|g| {
+                    let slack =
+                        (splat(coord_max[a]) + o_max[g]) * splat(PLANE_SLACK) * inv[a][g].abs();
+                    let neg = -(rays(g).org[a] * inv[a][g]);
+                    if sign < 0.0 { neg - slack } else { neg + slack }
+                })
             })
-        });
+        };
+        let (lo_offs, hi_offs) = (offs(-1.0), offs(1.0));
         let mut stack = Stack::<TileEntry<W, G>>::new();
         'walk: loop {
             let n = self.nodes[node as usize];
@@ -265,10 +273,9 @@ impl KdTree {
                 let split = splat(n.split);
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
-                let (org, inv, slack) = (&org[axis], &inv[axis], &slacks[axis]);
-                let t_split: [Vf<W>; G] = std::array::from_fn(|g| (split - org[g]) * inv[g]);
-                let lo: [Vf<W>; G] = std::array::from_fn(|g| t_split[g] - slack[g]);
-                let hi: [Vf<W>; G] = std::array::from_fn(|g| t_split[g] + slack[g]);
+                let (inv, lo_off, hi_off) = (&inv[axis], &lo_offs[axis], &hi_offs[axis]);
+                let lo: [Vf<W>; G] = std::array::from_fn(|g| split.mul_add(inv[g], lo_off[g]));
+                let hi: [Vf<W>; G] = std::array::from_fn(|g| split.mul_add(inv[g], hi_off[g]));
                 let near_only: [Mask<W>; G] = std::array::from_fn(|g| lo[g].cmp_gt(t_far[g]));
                 let mut far_lanes: [Mask<W>; G] = std::array::from_fn(|g| lanes[g] & !near_only[g]);
                 if far_lanes.iter().fold(Mask::<W>::NONE, |a, &m| a | m).none() {
@@ -393,15 +400,17 @@ impl KdTree {
             ];
             let t_min = corners.iter().copied().fold(f32::INFINITY, f32::min);
             let t_max = corners.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            // Room for the corners' rounding and the lanes' (module docs).
+            let pad = t_min.abs().max(t_max.abs()) * PLANE_SLACK + 2.0 * b.slack_max[a];
             let children = n.children();
             let (near, far) = if b.negative[a] {
                 (children + 1, children)
             } else {
                 (children, children + 1)
             };
-            if t_min - b.slack_max[a] > b.t_far_max {
+            if t_min - pad > b.t_far_max {
                 node = near;
-            } else if t_max + b.slack_max[a] < b.t_near_min {
+            } else if t_max + pad < b.t_near_min {
                 node = far;
             } else {
                 break;
