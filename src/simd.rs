@@ -141,6 +141,23 @@ pub fn mul_add(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
+/// Asks for the cache lines of `*x` ahead of a load that may follow (a hint: no
+/// effect on results, none on targets without one).
+#[inline(always)]
+pub fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (x as *const T).cast::<i8>();
+        // SAFETY: prefetching never faults and reads nothing; both addresses lie
+        // within `*x`.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.add(std::mem::size_of::<T>().saturating_sub(1)));
+        }
+    }
+}
+
 /// [`Float::transpose8`] lane by lane, at any width.
 #[inline]
 pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {

@@ -32,7 +32,7 @@ use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::ray::Hit;
 use crate::scene::Aabb;
-use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, max_abs};
+use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, max_abs, prefetch};
 use std::cell::Cell;
 
 thread_local! {
@@ -438,6 +438,14 @@ impl KdTree {
                 }
             }
         } else {
+            // Lanes near an edge need the triangle's corners (the exact rule,
+            // triaccel.rs), which sit apart from its record: ask for them now, while
+            // the leaf's tests run.
+            for &p in prims {
+                if let Some(c) = self.prims.corners.get(p as usize) {
+                    prefetch(c);
+                }
+            }
             let mut limit: [Vf<W>; G] =
                 std::array::from_fn(|g| next_up(best[g].t).min(rays(g).t_max));
             let groups = lanes.iter().filter(|l| l.any()).count() as u64;
