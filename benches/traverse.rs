@@ -16,7 +16,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
 use raypack::rayset::standard;
-use raypack::rayset::trace::{Query, checksum_chunk};
+use raypack::rayset::trace::{Order, Query, checksum_chunk};
 use raypack::scene::catalog;
 use std::hint::black_box;
 
@@ -42,7 +42,15 @@ fn traverse(c: &mut Criterion) {
         ] {
             group.throughput(Throughput::Elements(set.len() as u64));
             group.bench_function(name, |b| {
-                b.iter(|| black_box(checksum_chunk(&tree, black_box(&set.rays), mode, query)))
+                b.iter(|| {
+                    black_box(checksum_chunk(
+                        &tree,
+                        black_box(&set.rays),
+                        Order::of(set),
+                        mode,
+                        query,
+                    ))
+                })
             });
         }
         group.finish();

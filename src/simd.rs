@@ -85,6 +85,19 @@ pub trait Float:
     fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
         transpose8_lanes(records)
     }
+    /// [`Float::transpose8`] of `lo` followed by `hi`, each half the width: a packet
+    /// made of two runs of records that do not lie side by side (a 4x4 pixel block of
+    /// an image set is two runs of 8 rays), without copying them together first.
+    #[inline]
+    fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
+        transpose8_lanes_from(|i| {
+            if i < lo.len() {
+                lo.get(i)
+            } else {
+                hi.get(i - lo.len())
+            }
+        })
+    }
     /// The reverse for four fields: record `i` of `out` gets lane `i` of each vector
     /// (a packet's hits, [`crate::ray::Hit::as_records_mut`]); writes `out.len()`
     /// records, at most one per lane. No bit changes.
@@ -161,7 +174,13 @@ pub fn prefetch<T>(x: &T) {
 /// [`Float::transpose8`] lane by lane, at any width.
 #[inline]
 pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {
-    std::array::from_fn(|j| F::from_fn(|i| records.get(i).map_or(0.0, |r| r[j])))
+    transpose8_lanes_from(|i| records.get(i))
+}
+
+/// Lane `i` of vector `j` is field `j` of `record(i)` (0 where `None`).
+#[inline]
+fn transpose8_lanes_from<'r, F: Float>(record: impl Fn(usize) -> Option<&'r [f32; 8]>) -> [F; 8] {
+    std::array::from_fn(|j| F::from_fn(|i| record(i).map_or(0.0, |r| r[j])))
 }
 
 /// [`Float::transpose4_into`] lane by lane, at any width.
@@ -783,11 +802,31 @@ pub mod avx512 {
             if records.len() != 16 {
                 return super::transpose8_lanes(records);
             }
-            let base = records.as_ptr().cast::<f32>();
-            // SAFETY: `records` holds 16 * 8 f32, so each of the 8 loads reads 16 f32
-            // inside it (unaligned loads).
-            let z: [__m512; 8] =
-                std::array::from_fn(|k| unsafe { _mm512_loadu_ps(base.add(16 * k)) });
+            Self::transpose8_halves(&records[..8], &records[8..])
+        }
+        /// Two runs of eight records: the same loads and permutes as
+        /// [`Float::transpose8`], four loads from each run.
+        #[inline]
+        fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
+            if lo.len() != 8 || hi.len() != 8 {
+                return super::transpose8_lanes_from(|i| {
+                    if i < lo.len() {
+                        lo.get(i)
+                    } else {
+                        hi.get(i - lo.len())
+                    }
+                });
+            }
+            let (lo, hi) = (lo.as_ptr().cast::<f32>(), hi.as_ptr().cast::<f32>());
+            // SAFETY: each run holds 8 * 8 f32, so each load reads 16 f32 (two records)
+            // inside one run (unaligned loads).
+            let z: [__m512; 8] = std::array::from_fn(|k| unsafe {
+                _mm512_loadu_ps(if k < 4 {
+                    lo.add(16 * k)
+                } else {
+                    hi.add(16 * (k - 4))
+                })
+            });
             // SAFETY: each row of `TRANSPOSE` is 16 i32, read unaligned.
             let idx = |n: usize| unsafe { _mm512_loadu_si512(TRANSPOSE[n].as_ptr().cast()) };
             let join = |a: __m512, n: usize, b: __m512| avx!(_mm512_permutex2var_ps(a, idx(n), b));
@@ -1117,6 +1156,50 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `transpose8_halves` of two runs equals `transpose8` of the runs side by side,
+    /// bit for bit, for full and short runs.
+    fn transpose8_halves_join_the_runs<W: Simd>() {
+        let records: Vec<[f32; 8]> = (0..W::LANES)
+            .map(|i| {
+                std::array::from_fn(|j| match (i + 3 * j) % 5 {
+                    0 => -0.0,
+                    1 => f32::from_bits(0x7fc0_0000 | (i * 8 + j) as u32),
+                    _ => (i * 8 + j) as f32 + 0.75,
+                })
+            })
+            .collect();
+        let h = W::LANES / 2;
+        let bits = |v: [Vf<W>; 8]| {
+            v.map(|x| {
+                (0..W::LANES)
+                    .map(|i| x.lane(i).to_bits())
+                    .collect::<Vec<_>>()
+            })
+        };
+        for (lo, hi) in [(h, h), (h, h - 1), (h - 1, h), (1, 0)] {
+            let joined: Vec<[f32; 8]> = records[..lo]
+                .iter()
+                .chain(&records[h..h + hi])
+                .copied()
+                .collect();
+            assert_eq!(
+                bits(Vf::<W>::transpose8_halves(
+                    &records[..lo],
+                    &records[h..h + hi]
+                )),
+                bits(Vf::<W>::transpose8(&joined)),
+                "runs of {lo} and {hi}"
+            );
+        }
+    }
+
+    #[test]
+    fn transpose8_halves_at_every_width() {
+        transpose8_halves_join_the_runs::<W4>();
+        transpose8_halves_join_the_runs::<W8>();
+        transpose8_halves_join_the_runs::<W16>();
     }
 
     /// `transpose4_into` writes lane `i` of vector `j` to field `j` of record `i`, bits

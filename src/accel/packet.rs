@@ -57,16 +57,7 @@ impl<W: Simd> RayPacket<W> {
         );
         if rays.len() == W::LANES {
             // A full packet: one transpose of the rays' records.
-            let [ox, oy, oz, dx, dy, dz, t_min, t_max] = Vf::<W>::transpose8(Ray::as_records(rays));
-            let dir = [dx, dy, dz];
-            return RayPacket {
-                org: [ox, oy, oz],
-                dir,
-                inv_dir: dir.map(|x| Vf::<W>::ONE / x),
-                t_min,
-                t_max,
-                active: Mask::<W>::from_bits(W::all_bits()),
-            };
+            return RayPacket::full(Vf::<W>::transpose8(Ray::as_records(rays)));
         }
         let get = |i: usize| rays.get(i).unwrap_or(&FILL);
         let org = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).org[a]));
@@ -78,6 +69,34 @@ impl<W: Simd> RayPacket<W> {
             t_min: Vf::<W>::from_fn(|i| get(i).t_min),
             t_max: Vf::<W>::from_fn(|i| get(i).t_max),
             active: Mask::<W>::from_bits(low_bits(rays.len())),
+        }
+    }
+
+    /// [`RayPacket::from_rays`] of the rays of `lo` followed by those of `hi`, each
+    /// run half the width (a 4x4 pixel block of an image set: two runs of 8 rays, see
+    /// [`crate::rayset::trace`]).
+    pub fn from_halves(lo: &[Ray], hi: &[Ray]) -> RayPacket<W> {
+        assert!(
+            lo.len() == W::LANES / 2 && hi.len() == W::LANES / 2,
+            "two runs of half a packet"
+        );
+        RayPacket::full(Vf::<W>::transpose8_halves(
+            Ray::as_records(lo),
+            Ray::as_records(hi),
+        ))
+    }
+
+    /// A full packet from its rays' record fields, transposed into lanes.
+    #[inline]
+    fn full([ox, oy, oz, dx, dy, dz, t_min, t_max]: [Vf<W>; 8]) -> RayPacket<W> {
+        let dir = [dx, dy, dz];
+        RayPacket {
+            org: [ox, oy, oz],
+            dir,
+            inv_dir: dir.map(|x| Vf::<W>::ONE / x),
+            t_min,
+            t_max,
+            active: Mask::<W>::from_bits(W::all_bits()),
         }
     }
 

@@ -11,17 +11,15 @@ use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::Mode;
-use raypack::accel::RayPacket;
 use raypack::accel::kdtree::stats::{self, TraversalCounts};
-use raypack::accel::kdtree::traverse_packet::sign_group_count;
 use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, TileCounts, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::ray::Ray;
-use raypack::rayset::trace::{Query, checksum_set};
+use raypack::rayset::trace::{Order, Query, checksum_set, sign_split_packets};
 use raypack::rayset::{self, Checksum, RaySet, StandardSets, standard};
 use raypack::scene::Geometry;
 use raypack::scene::catalog::BenchScene;
-use raypack::simd::{Simd, W4, W8, W16};
+use raypack::simd::{W4, W8, W16};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -59,9 +57,10 @@ pub struct Args {
     /// Ray sets to trace (primary, shadow, diffuse).
     #[arg(long, value_delimiter = ',', default_value = "primary,shadow,diffuse")]
     pub sets: Vec<String>,
-    /// Modes: scalar (one ray at a time), packet4, packet8, packet16 (4, 8 or 16
-    /// consecutive rays, one SIMD lane each), packet (the widest this CPU runs natively)
-    /// or all. Rates are Mrays/s.
+    /// Modes: scalar (one ray at a time), packet4, packet8, packet16 (4, 8 or 16 rays,
+    /// one SIMD lane each: in an image set a 2x2, 4x2 or 4x4 pixel block, elsewhere
+    /// consecutive rays), packet (the widest this CPU runs natively), tile64, stream or
+    /// all. Rates are Mrays/s.
     #[arg(long, default_value = "scalar,packet", value_parser = |s: &str| Mode::parse_list(s).map(Modes))]
     pub modes: Modes,
     /// Thread counts (default: 1 and every core; 0 means every core).
@@ -150,22 +149,15 @@ fn set_named<'s>(sets: &'s StandardSets, name: &str) -> &'s RaySet {
     }
 }
 
-/// `[split, total]`: the packets of `mode` (consecutive rays of `set`, as the mode
-/// traces them) whose lanes disagree on a direction sign, and all of them.
+/// `[split, total]`: the packets of `mode` (as the mode forms them from `set`) whose
+/// lanes disagree on a direction sign, and all of them.
 fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
-    fn of<W: Simd>(set: &RaySet) -> [usize; 2] {
-        let packets = set.rays.chunks(W::LANES);
-        let total = packets.len();
-        let split = packets
-            .filter(|group| sign_group_count(&RayPacket::<W>::from_rays(group)) > 1)
-            .count();
-        [split, total]
-    }
+    let order = Order::of(set);
     match mode {
         Mode::Scalar | Mode::Stream => [0, set.len()],
-        Mode::Packet4 => of::<W4>(set),
-        Mode::Packet8 => of::<W8>(set),
-        Mode::Packet16 => of::<W16>(set),
+        Mode::Packet4 => sign_split_packets::<W4>(&set.rays, order),
+        Mode::Packet8 => sign_split_packets::<W8>(&set.rays, order),
+        Mode::Packet16 => sign_split_packets::<W16>(&set.rays, order),
         Mode::Tile64 => {
             let tiles = set.rays.chunks(TILE_RAYS);
             let total = tiles.len();
@@ -284,7 +276,7 @@ pub fn measure<A: Accel>(
     query: Query,
     repeat: usize,
 ) -> (Vec<f64>, Checksum) {
-    let pass = || pool.install(|| checksum_set(accel, &set.rays, mode, query));
+    let pass = || pool.install(|| checksum_set(accel, set, mode, query));
     let checksum = pass();
     let rates = (0..repeat)
         .map(|_| {

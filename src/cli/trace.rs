@@ -16,8 +16,9 @@ pub struct Args {
     /// The hits file to write (closest hits, whatever the set).
     #[arg(short, long, value_name = "OUT", alias = "out")]
     pub output: PathBuf,
-    /// scalar: one ray at a time; packet4, packet8, packet16: 4, 8 or 16 consecutive
-    /// rays per packet (packet, the default as in `render`: the widest this CPU runs);
+    /// scalar: one ray at a time; packet4, packet8, packet16: 4, 8 or 16 rays per packet
+    /// (in an image set a 2x2, 4x2 or 4x4 pixel block, elsewhere consecutive rays;
+    /// packet, the default as in `render`: the widest this CPU runs);
     /// tile64: 64 rays per tile. Every mode writes the same hits.
     #[arg(long, default_value = "packet")]
     pub mode: Mode,
@@ -29,7 +30,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = load_scene(&args.scene)?;
     let (accel, build_seconds) = build_accel(&scene.geometry, &Default::default());
     let start = std::time::Instant::now();
-    let hits = rayset::trace::trace_hits(&accel, &rays.rays, args.mode);
+    let hits = rayset::trace::trace_hits(&accel, &rays, args.mode);
     let seconds = start.elapsed().as_secs_f64();
     rayset::write_hits(&args.output, &hits)?;
     println!(

@@ -1,27 +1,133 @@
 //! Tracing a ray set through an [`Accel`]: scalar mode calls `intersect`/`occluded` per
-//! ray, the packet modes call `intersect_packet`/`occluded_packet` on every 4, 8 or 16
-//! consecutive rays (in an image set in RAYS.md's packet order, a 2x2 quad, a 4x2 block
-//! or two 4x2 blocks side by side; lanes past the end of the set are inactive), and
-//! tile mode calls `intersect_tile`/`occluded_tile` on every 64 (a 16x4 block), and
-//! stream mode calls `intersect_stream`/`occluded_stream` on each chunk as a whole.
+//! ray, the packet modes call `intersect_packet`/`occluded_packet` on packets of 4, 8 or
+//! 16 rays, tile mode calls `intersect_tile`/`occluded_tile` on every 64 consecutive
+//! rays (in an image set, a 16x4 block), and stream mode calls
+//! `intersect_stream`/`occluded_stream` on each chunk as a whole.
+//!
+//! A packet of an image set in RAYS.md's packet order is the pixel block of its width's
+//! shape ([`crate::simd::Simd::SHAPE`]: 2x2, 4x2, 4x4), its lanes in
+//! [`crate::simd::block_pixel`]'s order: 4 and 8 consecutive rays already are such a
+//! block, 16 are gathered from two rows of quads (16 consecutive rays are an 8x2 strip,
+//! whose rays part ways sooner: a 4x4 block traces Sponza's camera rays 6% faster,
+//! perf/wide.md). A set that is not an image goes in packets of consecutive rays; lanes
+//! past its end are inactive.
 //!
 //! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a
 //! chunk to packets, traces them and folds every answer into a [`Checksum`] (hit count
 //! and sum of primitive ids, as the Embree harness folds its answers), so the work
 //! cannot be optimised away and two modes or two tracers can be compared.
 
+use super::format::{RaySet, TILE, pixel_packet_index};
 use crate::accel::Mode;
+use crate::accel::kdtree::traverse_packet::sign_group_count;
 use crate::accel::kdtree::traverse_tile::TILE_RAYS;
 use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, intersect_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{MAX_LANES, Uint, W4, W8, W16};
+use crate::simd::{MAX_LANES, Simd, Uint, W4, W8, W16, block_pixel};
 use rayon::prelude::*;
 use std::fmt;
 
 /// Rays per unit of work handed to a thread (the harness's chunk size).
 pub const CHUNK: usize = 4096;
 
-const _: () = assert!(CHUNK.is_multiple_of(MAX_LANES) && CHUNK.is_multiple_of(TILE_RAYS));
+/// Rays in one 16x16-pixel tile of an image set.
+const TILE_PIXELS: usize = (TILE * TILE) as usize;
+
+const _: () = assert!(
+    CHUNK.is_multiple_of(MAX_LANES)
+        && CHUNK.is_multiple_of(TILE_RAYS)
+        && CHUNK.is_multiple_of(TILE_PIXELS)
+);
+
+/// How a slice of rays lies: an image set's rays in RAYS.md's packet order (whole
+/// 16x16 tiles), whose packets are pixel blocks, or anything else, whose packets are
+/// consecutive rays. Both give every ray the same answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Order {
+    Image,
+    Any,
+}
+
+impl Order {
+    /// The order of `set`'s rays.
+    pub fn of(set: &RaySet) -> Order {
+        if set.width > 0 && set.height > 0 {
+            Order::Image
+        } else {
+            Order::Any
+        }
+    }
+}
+
+/// For each packet of `W` lanes in a 16x16 tile of an image set, the tile's rays its
+/// lanes take: packet `p` is the `W::SHAPE` block `p` (blocks row-major), lane `i` its
+/// pixel [`block_pixel`] `i`.
+fn tile_lanes<W: Simd>() -> [u16; TILE_PIXELS] {
+    let (w, h) = W::SHAPE;
+    let blocks_x = TILE / w;
+    std::array::from_fn(|k| {
+        let (p, i) = ((k / W::LANES) as u32, k % W::LANES);
+        let (dx, dy) = block_pixel::<W>(i);
+        let (x, y) = ((p % blocks_x) * w + dx, (p / blocks_x) * h + dy);
+        pixel_packet_index(x, y, TILE) as u16
+    })
+}
+
+/// Calls `f` on every packet of `rays` with the indices in `rays` of its lanes (see the
+/// module docs for which rays a packet takes).
+#[inline]
+fn for_each_packet<W: PacketWidth>(
+    rays: &[Ray],
+    order: Order,
+    mut f: impl FnMut(&RayPacket<W>, &[usize]),
+) {
+    let mut idx = [0usize; MAX_LANES];
+    let table = tile_lanes::<W>();
+    let gather = order == Order::Image
+        && rays.len().is_multiple_of(TILE_PIXELS)
+        && table.iter().enumerate().any(|(k, &j)| k != j as usize);
+    if !gather {
+        for (k, group) in rays.chunks(W::LANES).enumerate() {
+            for (i, x) in idx[..group.len()].iter_mut().enumerate() {
+                *x = k * W::LANES + i;
+            }
+            f(&RayPacket::from_rays(group), &idx[..group.len()]);
+        }
+        return;
+    }
+    // Each block is two runs of consecutive rays, its upper and its lower half (the
+    // halves' rows of quads): no copy.
+    let half = W::LANES / 2;
+    let run = |l: &[u16]| l.windows(2).all(|w| w[1] == w[0] + 1);
+    debug_assert!(
+        table
+            .chunks(W::LANES)
+            .all(|l| run(&l[..half]) && run(&l[half..]))
+    );
+    for (t, tile) in rays.chunks(TILE_PIXELS).enumerate() {
+        for lanes in table.chunks(W::LANES) {
+            for (i, &j) in lanes.iter().enumerate() {
+                idx[i] = t * TILE_PIXELS + j as usize;
+            }
+            let (a, b) = (lanes[0] as usize, lanes[half] as usize);
+            f(
+                &RayPacket::from_halves(&tile[a..a + half], &tile[b..b + half]),
+                &idx[..W::LANES],
+            );
+        }
+    }
+}
+
+/// `[split, total]`: the packets of `W` lanes of `rays` (as the packet modes form them)
+/// whose lanes disagree on a direction sign, and all of them.
+pub fn sign_split_packets<W: PacketWidth>(rays: &[Ray], order: Order) -> [usize; 2] {
+    let mut counts = [0, 0];
+    for_each_packet::<W>(rays, order, |p, _| {
+        counts[0] += (sign_group_count(p) > 1) as usize;
+        counts[1] += 1;
+    });
+    counts
+}
 
 /// Closest hit or any hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,14 +176,20 @@ impl fmt::Display for Checksum {
     }
 }
 
-/// Closest hits of `rays` into `out` (same length) in `mode`.
-pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, out: &mut [Hit]) {
+/// Closest hits of `rays` (lying in `order`) into `out` (same length) in `mode`.
+pub fn intersect_into<A: Accel + ?Sized>(
+    accel: &A,
+    rays: &[Ray],
+    order: Order,
+    mode: Mode,
+    out: &mut [Hit],
+) {
     assert_eq!(rays.len(), out.len());
     match mode {
         Mode::Scalar => intersect_each(accel, rays, out),
-        Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, out),
-        Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, out),
-        Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, out),
+        Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, order, out),
+        Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, order, out),
+        Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, order, out),
         Mode::Tile64 => {
             for (tile, ht) in rays.chunks(TILE_RAYS).zip(out.chunks_mut(TILE_RAYS)) {
                 accel.intersect_tile(tile, ht);
@@ -87,27 +199,36 @@ pub fn intersect_into<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode, ou
     }
 }
 
-fn intersect_packets<A: Accel + ?Sized, W: PacketWidth>(accel: &A, rays: &[Ray], out: &mut [Hit]) {
-    for (group, hg) in rays.chunks(W::LANES).zip(out.chunks_mut(W::LANES)) {
-        accel
-            .intersect_packet(&RayPacket::<W>::from_rays(group))
-            .write(hg);
-    }
+fn intersect_packets<A: Accel + ?Sized, W: PacketWidth>(
+    accel: &A,
+    rays: &[Ray],
+    order: Order,
+    out: &mut [Hit],
+) {
+    for_each_packet::<W>(rays, order, |p, idx| {
+        let hits = accel.intersect_packet(p);
+        for (i, &r) in idx.iter().enumerate() {
+            out[r] = hits.lane(i);
+        }
+    });
 }
 
 /// Closest hits of a whole set in `mode`, in chunks over the current rayon pool.
-pub fn trace_hits<A: Accel + ?Sized>(accel: &A, rays: &[Ray], mode: Mode) -> Vec<Hit> {
-    let mut hits = vec![Hit::MISS; rays.len()];
+pub fn trace_hits<A: Accel + ?Sized>(accel: &A, set: &RaySet, mode: Mode) -> Vec<Hit> {
+    let order = Order::of(set);
+    let mut hits = vec![Hit::MISS; set.len()];
     hits.par_chunks_mut(CHUNK)
-        .zip(rays.par_chunks(CHUNK))
-        .for_each(|(h, r)| intersect_into(accel, r, mode, h));
+        .zip(set.rays.par_chunks(CHUNK))
+        .for_each(|(h, r)| intersect_into(accel, r, order, mode, h));
     hits
 }
 
-/// Traces one chunk and folds the answers into a checksum (the timed kernel).
+/// Traces one chunk (lying in `order`) and folds the answers into a checksum (the timed
+/// kernel).
 pub fn checksum_chunk<A: Accel + ?Sized>(
     accel: &A,
     rays: &[Ray],
+    order: Order,
     mode: Mode,
     query: Query,
 ) -> Checksum {
@@ -123,9 +244,9 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
         (Mode::Scalar, Query::Occluded) => {
             c.hits = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
         }
-        (Mode::Packet4, _) => return checksum_packets::<A, W4>(accel, rays, query),
-        (Mode::Packet8, _) => return checksum_packets::<A, W8>(accel, rays, query),
-        (Mode::Packet16, _) => return checksum_packets::<A, W16>(accel, rays, query),
+        (Mode::Packet4, _) => return checksum_packets::<A, W4>(accel, rays, order, query),
+        (Mode::Packet8, _) => return checksum_packets::<A, W8>(accel, rays, order, query),
+        (Mode::Packet16, _) => return checksum_packets::<A, W16>(accel, rays, order, query),
         (Mode::Tile64, Query::Closest) => {
             let mut hits = [Hit::MISS; TILE_RAYS];
             for tile in rays.chunks(TILE_RAYS) {
@@ -154,29 +275,26 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
     c
 }
 
-/// [`checksum_chunk`] of the packet modes: `W::LANES` consecutive rays per packet.
+/// [`checksum_chunk`] of the packet modes (packets as the module docs say).
 #[inline]
 fn checksum_packets<A: Accel + ?Sized, W: PacketWidth>(
     accel: &A,
     rays: &[Ray],
+    order: Order,
     query: Query,
 ) -> Checksum {
     let mut c = Checksum::default();
     match query {
-        Query::Closest => {
-            for group in rays.chunks(W::LANES) {
-                let hp = accel.intersect_packet(&RayPacket::<W>::from_rays(group));
-                for i in 0..group.len() {
-                    c.add_prim(hp.prim.lane(i));
-                }
+        Query::Closest => for_each_packet::<W>(rays, order, |p, idx| {
+            let hp = accel.intersect_packet(p);
+            for i in 0..idx.len() {
+                c.add_prim(hp.prim.lane(i));
             }
-        }
-        Query::Occluded => {
-            for group in rays.chunks(W::LANES) {
-                let bits = accel.occluded_packet(&RayPacket::<W>::from_rays(group));
-                c.hits += (bits & crate::accel::packet::low_bits(group.len())).count_ones() as u64;
-            }
-        }
+        }),
+        Query::Occluded => for_each_packet::<W>(rays, order, |p, idx| {
+            let bits = accel.occluded_packet(p);
+            c.hits += (bits & crate::accel::packet::low_bits(idx.len())).count_ones() as u64;
+        }),
     }
     c
 }
@@ -184,12 +302,14 @@ fn checksum_packets<A: Accel + ?Sized, W: PacketWidth>(
 /// Traces a whole set in chunks of [`CHUNK`] rays over the current rayon pool.
 pub fn checksum_set<A: Accel + ?Sized>(
     accel: &A,
-    rays: &[Ray],
+    set: &RaySet,
     mode: Mode,
     query: Query,
 ) -> Checksum {
-    rays.par_chunks(CHUNK)
-        .map(|r| checksum_chunk(accel, r, mode, query))
+    let order = Order::of(set);
+    set.rays
+        .par_chunks(CHUNK)
+        .map(|r| checksum_chunk(accel, r, order, mode, query))
         .reduce(Checksum::default, Checksum::merge)
 }
 
@@ -197,7 +317,9 @@ pub fn checksum_set<A: Accel + ?Sized>(
 mod tests {
     use super::*;
     use crate::accel::brute::BruteForce;
+    use crate::rayset::format::packet_pixel;
     use crate::scene::{Geometry, Sphere};
+    use crate::simd::Float;
     use glam::Vec3;
 
     fn spheres_and_rays() -> (Geometry, Vec<Ray>) {
@@ -228,20 +350,82 @@ mod tests {
         (g, rays)
     }
 
+    /// An image set's packets: every ray once, each packet the pixel block of its
+    /// width's shape with its lanes in `block_pixel` order.
+    fn image_packets_are_blocks<W: PacketWidth>() {
+        let width = 32;
+        let rays: Vec<Ray> = (0..width * 48)
+            .map(|i| Ray::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::Z, 0.0, 1.0))
+            .collect();
+        let mut seen = vec![0u32; rays.len()];
+        for_each_packet::<W>(&rays, Order::Image, |p, idx| {
+            assert_eq!(idx.len(), W::LANES);
+            let (x0, y0) = packet_pixel(idx[0], width);
+            for (i, &r) in idx.iter().enumerate() {
+                seen[r] += 1;
+                assert_eq!(p.org[0].lane(i), r as f32, "lane {i} holds ray {r}");
+                let (dx, dy) = block_pixel::<W>(i);
+                assert_eq!(packet_pixel(r, width), (x0 + dx, y0 + dy), "lane {i}");
+            }
+            assert_eq!((x0 % W::SHAPE.0, y0 % W::SHAPE.1), (0, 0));
+        });
+        assert!(seen.iter().all(|&n| n == 1));
+    }
+
+    #[test]
+    fn image_packets_at_every_width() {
+        image_packets_are_blocks::<W4>();
+        image_packets_are_blocks::<W8>();
+        image_packets_are_blocks::<W16>();
+    }
+
+    #[test]
+    fn image_sets_give_every_ray_its_answer_in_every_mode() {
+        let (g, _) = spheres_and_rays();
+        let accel = BruteForce::new(&g);
+        let (width, height) = (48, 32);
+        let rays = (0..width * height)
+            .map(|i| {
+                let (x, y) = packet_pixel(i as usize, width);
+                let d = Vec3::new(x as f32 / 40.0 - 0.6, y as f32 / 40.0 - 0.4, 1.0);
+                Ray::new(Vec3::ZERO, d.normalize(), 0.0, f32::INFINITY)
+            })
+            .collect();
+        let set = RaySet {
+            width,
+            height,
+            rays,
+        };
+        let scalar = trace_hits(&accel, &set, Mode::Scalar);
+        let c = Checksum::of_hits(&scalar);
+        assert!(c.hits > 100 && c.hits < set.len() as u64, "{c}");
+        for mode in Mode::ALL {
+            assert_eq!(trace_hits(&accel, &set, mode), scalar, "{mode}");
+            assert_eq!(
+                checksum_set(&accel, &set, mode, Query::Closest),
+                c,
+                "{mode}"
+            );
+            let o = checksum_set(&accel, &set, mode, Query::Occluded);
+            assert_eq!(o.hits, c.hits, "{mode}");
+        }
+    }
+
     #[test]
     fn modes_and_chunkings_agree() {
         let (g, rays) = spheres_and_rays();
         let accel = BruteForce::new(&g);
-        let scalar = trace_hits(&accel, &rays, Mode::Scalar);
+        let set = RaySet::from_rays(rays.clone());
+        let scalar = trace_hits(&accel, &set, Mode::Scalar);
         for mode in Mode::ALL {
-            assert_eq!(trace_hits(&accel, &rays, mode), scalar, "{mode}");
+            assert_eq!(trace_hits(&accel, &set, mode), scalar, "{mode}");
         }
         let c = Checksum::of_hits(&scalar);
         assert!(c.hits > 10 && c.hits < rays.len() as u64, "{c}");
         for mode in Mode::ALL {
-            assert_eq!(checksum_set(&accel, &rays, mode, Query::Closest), c);
+            assert_eq!(checksum_set(&accel, &set, mode, Query::Closest), c);
             let occluded = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
-            let o = checksum_set(&accel, &rays, mode, Query::Occluded);
+            let o = checksum_set(&accel, &set, mode, Query::Occluded);
             assert_eq!(
                 o,
                 Checksum {
