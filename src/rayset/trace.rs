@@ -73,28 +73,56 @@ fn tile_lanes<W: Simd>() -> [u16; TILE_PIXELS] {
     })
 }
 
-/// Calls `f` on every packet of `rays` with the indices in `rays` of its lanes (see the
-/// module docs for which rays a packet takes).
+/// Which rays of a slice the lanes of a packet hold: a run of consecutive rays, or
+/// gathered ones (lane `i` holds ray `lanes[i]`).
+#[derive(Clone, Copy)]
+enum Lanes<'a> {
+    Run { first: usize, len: usize },
+    Gathered(&'a [usize]),
+}
+
+impl Lanes<'_> {
+    #[inline]
+    fn len(&self) -> usize {
+        match *self {
+            Lanes::Run { len, .. } => len,
+            Lanes::Gathered(idx) => idx.len(),
+        }
+    }
+
+    /// The ray of lane `i`.
+    #[inline]
+    fn ray(&self, i: usize) -> usize {
+        match *self {
+            Lanes::Run { first, .. } => first + i,
+            Lanes::Gathered(idx) => idx[i],
+        }
+    }
+}
+
+/// Calls `f` on every packet of `rays` with the rays its lanes hold (see the module docs
+/// for which rays a packet takes).
 #[inline]
 fn for_each_packet<W: PacketWidth>(
     rays: &[Ray],
     order: Order,
-    mut f: impl FnMut(&RayPacket<W>, &[usize]),
+    mut f: impl FnMut(&RayPacket<W>, Lanes<'_>),
 ) {
-    let mut idx = [0usize; MAX_LANES];
     let table = tile_lanes::<W>();
     let gather = order == Order::Image
         && rays.len().is_multiple_of(TILE_PIXELS)
         && table.iter().enumerate().any(|(k, &j)| k != j as usize);
     if !gather {
         for (k, group) in rays.chunks(W::LANES).enumerate() {
-            for (i, x) in idx[..group.len()].iter_mut().enumerate() {
-                *x = k * W::LANES + i;
-            }
-            f(&RayPacket::from_rays(group), &idx[..group.len()]);
+            let lanes = Lanes::Run {
+                first: k * W::LANES,
+                len: group.len(),
+            };
+            f(&RayPacket::from_rays(group), lanes);
         }
         return;
     }
+    let mut idx = [0usize; MAX_LANES];
     // Each block is two runs of consecutive rays, its upper and its lower half (the
     // halves' rows of quads): no copy.
     let half = W::LANES / 2;
@@ -112,7 +140,7 @@ fn for_each_packet<W: PacketWidth>(
             let (a, b) = (lanes[0] as usize, lanes[half] as usize);
             f(
                 &RayPacket::from_halves(&tile[a..a + half], &tile[b..b + half]),
-                &idx[..W::LANES],
+                Lanes::Gathered(&idx[..W::LANES]),
             );
         }
     }
@@ -205,10 +233,15 @@ fn intersect_packets<A: Accel + ?Sized, W: PacketWidth>(
     order: Order,
     out: &mut [Hit],
 ) {
-    for_each_packet::<W>(rays, order, |p, idx| {
+    for_each_packet::<W>(rays, order, |p, lanes| {
         let hits = accel.intersect_packet(p);
-        for (i, &r) in idx.iter().enumerate() {
-            out[r] = hits.lane(i);
+        match lanes {
+            Lanes::Run { first, len } => hits.write(&mut out[first..first + len]),
+            Lanes::Gathered(_) => {
+                for i in 0..lanes.len() {
+                    out[lanes.ray(i)] = hits.lane(i);
+                }
+            }
         }
     });
 }
@@ -285,15 +318,15 @@ fn checksum_packets<A: Accel + ?Sized, W: PacketWidth>(
 ) -> Checksum {
     let mut c = Checksum::default();
     match query {
-        Query::Closest => for_each_packet::<W>(rays, order, |p, idx| {
+        Query::Closest => for_each_packet::<W>(rays, order, |p, lanes| {
             let hp = accel.intersect_packet(p);
-            for i in 0..idx.len() {
+            for i in 0..lanes.len() {
                 c.add_prim(hp.prim.lane(i));
             }
         }),
-        Query::Occluded => for_each_packet::<W>(rays, order, |p, idx| {
+        Query::Occluded => for_each_packet::<W>(rays, order, |p, lanes| {
             let bits = accel.occluded_packet(p);
-            c.hits += (bits & crate::accel::packet::low_bits(idx.len())).count_ones() as u64;
+            c.hits += (bits & crate::accel::packet::low_bits(lanes.len())).count_ones() as u64;
         }),
     }
     c
@@ -358,10 +391,10 @@ mod tests {
             .map(|i| Ray::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::Z, 0.0, 1.0))
             .collect();
         let mut seen = vec![0u32; rays.len()];
-        for_each_packet::<W>(&rays, Order::Image, |p, idx| {
-            assert_eq!(idx.len(), W::LANES);
-            let (x0, y0) = packet_pixel(idx[0], width);
-            for (i, &r) in idx.iter().enumerate() {
+        for_each_packet::<W>(&rays, Order::Image, |p, lanes| {
+            assert_eq!(lanes.len(), W::LANES);
+            let (x0, y0) = packet_pixel(lanes.ray(0), width);
+            for (i, r) in (0..lanes.len()).map(|i| (i, lanes.ray(i))) {
                 seen[r] += 1;
                 assert_eq!(p.org[0].lane(i), r as f32, "lane {i} holds ray {r}");
                 let (dx, dy) = block_pixel::<W>(i);
