@@ -2,14 +2,14 @@
 //! walk (Wald, Benthin and Boulos 2008 call this the SPMD or "single ray per lane"
 //! form; Aila and Laine 2009 run it on GPUs). Incoherent rays share no nodes, so a
 //! packet's lanes cannot decide together; here they do not have to. Every iteration
-//! loads each lane's node ([`Uint::gather`]: `W` independent loads in flight, so the
-//! cache misses of `W` rays overlap), decides the inner-node step of every lane in
+//! loads each lane's node ([`Uint::gather_pairs`]: `W` independent loads in flight, so
+//! the cache misses of `W` rays overlap), decides the inner-node step of every lane in
 //! SIMD without a branch, and ends the steps at leaves and empty children lane by lane
 //! with the scalar code (`KdTree::leaf_step`, `Walk::pop`). A lane whose walk ends takes the
 //! next ray of the stream.
 //!
 //! Invariant, so each ray's answer is the scalar path's bit for bit: a lane repeats
-//! `KdTree::step` for its ray operation by operation (the split distance, its slack,
+//! `KdTree::step` for its ray operation by operation (the band's ends at the split,
 //! the near/far tests, the empty-child skips, the intervals and the pushes on the
 //! lane's own stack), so it visits the scalar ray's leaves with its intervals in its
 //! order; leaves, pops and the best-hit test run the scalar code itself. A ray with a
