@@ -6,13 +6,16 @@
 //! [`TriAccel::intersect`] operation by operation (`a * b + c` as a multiply then an
 //! add, a true division, the same min/max order), so `t`, `u`, `v` and the edge bound are
 //! bit-identical to it in every lane. Lanes whose answer lies within the bound of an
-//! edge are decided one by one by the same scalar exact rule
-//! ([`super::triaccel::exact_rule`]), which also gives their `t`, `u`, `v`. Inactive lanes are masked out of the result; their
+//! edge are decided by the exact rule in lanes ([`super::watertight::intersect_lanes`],
+//! the scalar rule's operations), all such lanes in one pass; a lane it leaves
+//! undecided (an edge function exactly zero) takes the scalar rule itself
+//! ([`super::triaccel::exact_rule`]). Either gives the scalar `t`, `u`, `v`. Inactive lanes are masked out of the result; their
 //! values (NaN included) reach no other lane because every operation is lane-wise.
 
 use super::axis::MOD3;
 use super::packet::{LaneHits, RayPacket};
 use super::triaccel::{C1, C2, T_SLACK, TriAccel, exact_rule};
+use super::watertight;
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
 use glam::Vec3;
 
@@ -116,27 +119,66 @@ impl TriAccel {
                 v,
             };
         }
-        let (mut tt, mut uu, mut vv) = (t, u, v);
-        let mut hit = sure.bits();
-        let mut left = unsure;
-        while left != 0 {
-            let i = left.trailing_zeros() as usize;
-            left &= left - 1;
-            if let Some(ray) = rays.lane(i)
-                && let Some((ti, ui, vi)) = exact_rule(&ray, t_max.lane(i), corners)
-            {
-                let lane = Mask::<W>::from_bits(1 << i);
-                tt = Vf::<W>::select(lane, splat(ti), tt);
-                uu = Vf::<W>::select(lane, splat(ui), uu);
-                vv = Vf::<W>::select(lane, splat(vi), vv);
-                hit |= 1 << i;
-            }
+        near_edges(
+            rays,
+            t_max,
+            corners,
+            LaneHits {
+                mask: sure,
+                t,
+                u,
+                v,
+            },
+            Mask::<W>::from_bits(unsure),
+        )
+    }
+}
+
+/// `fast` (the lanes the fast test decided) with the lanes of `unsure`, those within
+/// the edge bound, decided by the exact rule. Out of line: most tests have no such
+/// lane, and the traversal loops that inline the test stay small.
+#[inline(never)]
+fn near_edges<W: Simd>(
+    rays: &RayPacket<W>,
+    t_max: Vf<W>,
+    corners: &[Vec3; 3],
+    fast: LaneHits<W>,
+    unsure: Mask<W>,
+) -> LaneHits<W> {
+    let splat = Vf::<W>::splat;
+    // The exact rule for every unsure lane in one pass; lanes it leaves undecided
+    // (an edge function exactly zero) take the scalar rule one by one.
+    let exact = watertight::intersect_lanes(
+        &rays.org,
+        &rays.dir,
+        &corners.map(|c| [splat(c.x), splat(c.y), splat(c.z)]),
+    );
+    let in_range = exact.t.cmp_gt(rays.t_min) & exact.t.cmp_lt(t_max);
+    let mut hit = (fast.mask | (unsure & exact.hit & in_range)).bits();
+    let select = Vf::<W>::select;
+    let (mut tt, mut uu, mut vv) = (
+        select(unsure, exact.t, fast.t),
+        select(unsure, exact.u, fast.u),
+        select(unsure, exact.v, fast.v),
+    );
+    let mut left = (unsure & !exact.decided).bits();
+    while left != 0 {
+        let i = left.trailing_zeros() as usize;
+        left &= left - 1;
+        if let Some(ray) = rays.lane(i)
+            && let Some((ti, ui, vi)) = exact_rule(&ray, t_max.lane(i), corners)
+        {
+            let lane = Mask::<W>::from_bits(1 << i);
+            tt = select(lane, splat(ti), tt);
+            uu = select(lane, splat(ui), uu);
+            vv = select(lane, splat(vi), vv);
+            hit |= 1 << i;
         }
-        LaneHits {
-            mask: Mask::<W>::from_bits(hit),
-            t: tt,
-            u: uu,
-            v: vv,
-        }
+    }
+    LaneHits {
+        mask: Mask::<W>::from_bits(hit),
+        t: tt,
+        u: uu,
+        v: vv,
     }
 }
