@@ -317,12 +317,20 @@ impl<A: Accel + ?Sized> PacketTrace for A {
 }
 
 /// The primitive records an accelerator tests: TriAccel triangles, spheres and boxes
-/// (indexed by primitive id) and the unbounded planes, tested beside any tree.
+/// and the unbounded planes, tested beside any tree.
+///
+/// Records are indexed by *slot*. Spheres, boxes and planes sit at their primitive id;
+/// a triangle's slot is its id until [`Prims::reorder_triangles`] places the records
+/// in the order a tree's leaves name them, so a leaf's triangles share cache lines
+/// (perf/wide.md, "Triangle records in leaf order"). Each record carries its
+/// triangle's id ([`TriAccel::id`]); hits report ids ([`Prims::id`]) and ties between
+/// equal distances go to the smaller id, so the answers do not depend on the order.
 #[derive(Clone, Debug, Default)]
 pub struct Prims {
-    /// The triangles' precomputed records, by triangle id.
+    /// The triangles' precomputed records, by slot.
     pub tris: Vec<TriAccel>,
-    /// Each triangle's corners, read only when the exact edge rule decides a test.
+    /// Each triangle's corners, by slot, read only when the exact edge rule decides a
+    /// test.
     pub corners: Vec<[Vec3; 3]>,
     /// Spheres; sphere `i` has primitive id `sphere_base + i`.
     pub spheres: Vec<Sphere>,
@@ -380,13 +388,38 @@ impl Prims {
         }
     }
 
-    /// Tests bounded primitive `prim` for `ray.t_min < t < t_max`.
+    /// Places the triangles' records in `order`: slot `s` gets the triangle that was in
+    /// slot `order[s]` (`order` a permutation of the slots).
+    pub fn reorder_triangles(&mut self, order: &[u32]) {
+        debug_assert_eq!(order.len(), self.tris.len());
+        self.tris = order.iter().map(|&s| self.tris[s as usize]).collect();
+        self.corners = order.iter().map(|&s| self.corners[s as usize]).collect();
+    }
+
+    /// The primitive id of the record in `slot` (see [`Prims`]).
+    #[inline(always)]
+    pub fn id(&self, slot: u32) -> u32 {
+        if slot < self.sphere_base {
+            self.tris[slot as usize].id()
+        } else {
+            slot
+        }
+    }
+
+    /// Tests the bounded primitive in `slot` for `ray.t_min < t < t_max`; the hit
+    /// reports its id.
     #[inline]
-    pub fn intersect_prim(&self, prim: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
+    pub fn intersect_prim(&self, slot: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let prim = slot;
         if prim < self.sphere_base {
             let i = prim as usize;
             let (t, u, v) = self.tris[i].intersect(ray, t_max, &self.corners[i])?;
-            Some(Hit { t, u, v, prim })
+            Some(Hit {
+                t,
+                u,
+                v,
+                prim: self.tris[i].id(),
+            })
         } else if prim < self.box_base {
             let t = prims::intersect_sphere(
                 &self.spheres[(prim - self.sphere_base) as usize],
@@ -410,7 +443,7 @@ impl Prims {
         }
     }
 
-    /// Folds the primitives `prims` of a leaf into `best` in order: each is tested with
+    /// Folds the primitives in slots `prims` of a leaf into `best` in order: each is tested with
     /// `t_max = next_up(best.t)` (capped at the ray's) so an equal `t` reaches
     /// [`Hit::is_closer`] and a smaller id wins the tie.
     #[inline]

@@ -115,8 +115,10 @@ pub struct TriAccel {
     pub n_v: f32,
     /// Plane offset over the normal's `k` component: `dot(n, v0) / n_k`.
     pub n_d: f32,
-    /// Projection axis: the largest component of the normal.
-    pub k: u32,
+    /// Projection axis `k` (the largest component of the normal) in bits 0 and 1, the
+    /// triangle's id above them ([`TriAccel::axis`], [`TriAccel::id`]): a hit names its
+    /// triangle from the record it was tested with, with no other load.
+    pub k_id: u32,
     /// `u`'s gradient along the projected `u` axis.
     pub b_nu: f32,
     /// `u`'s gradient along the projected `v` axis.
@@ -139,8 +141,33 @@ pub struct TriAccel {
 
 const _: () = assert!(std::mem::size_of::<TriAccel>() == 48);
 
+/// Largest triangle id a record holds (30 bits, as the kd-tree's indices).
+pub const MAX_ID: u32 = (1 << 30) - 1;
+
 impl TriAccel {
-    /// Precomputes the record of the triangle with corners `a`, `b`, `c`. A degenerate
+    /// The projection axis `k`.
+    #[inline(always)]
+    pub fn axis(&self) -> usize {
+        (self.k_id & 3) as usize
+    }
+
+    /// The id of the triangle.
+    #[inline(always)]
+    pub fn id(&self) -> u32 {
+        self.k_id >> 2
+    }
+
+    /// The record naming triangle `id` (at most [`MAX_ID`]).
+    #[inline]
+    pub fn with_id(self, id: u32) -> TriAccel {
+        debug_assert!(id <= MAX_ID);
+        TriAccel {
+            k_id: (self.k_id & 3) | id << 2,
+            ..self
+        }
+    }
+
+    /// Precomputes the record of the triangle with corners `a`, `b`, `c` (id 0). A degenerate
     /// triangle gets a record that no ray hits (its edge equations are all zero with
     /// `b_d = -1`).
     pub fn new(a: Vec3, b: Vec3, c: Vec3) -> TriAccel {
@@ -164,7 +191,7 @@ impl TriAccel {
                 n_u: 0.0,
                 n_v: 0.0,
                 n_d: 0.0,
-                k: k as u32,
+                k_id: k as u32,
                 b_nu: 0.0,
                 b_nv: 0.0,
                 b_d: -1.0,
@@ -189,7 +216,7 @@ impl TriAccel {
             n_u,
             n_v,
             n_d,
-            k: k as u32,
+            k_id: k as u32,
             b_nu,
             b_nv,
             b_d,
@@ -210,7 +237,7 @@ impl TriAccel {
     /// over the region where the bound decides anything, and `mag` is raised until the
     /// bound's constant and grazing terms cover them. Rounded up, never down.
     fn bound_factors(&self, p: [Vec3; 3]) -> (f32, f32) {
-        let k = self.k as usize;
+        let k = self.axis();
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let f = |x: f32| x as f64;
         let beta =
@@ -259,11 +286,11 @@ impl TriAccel {
             .collect()
     }
 
-    /// The record of `geometry`'s triangle `tri`.
+    /// The record of `geometry`'s triangle `tri`, naming it.
     #[inline]
     pub fn of(geometry: &Geometry, tri: u32) -> TriAccel {
         let [a, b, c] = geometry.triangle(tri);
-        TriAccel::new(a, b, c)
+        TriAccel::new(a, b, c).with_id(tri)
     }
 
     /// Intersects `ray` with the triangle for `t_min < t < t_max`; returns `(t, u, v)`.
@@ -273,7 +300,7 @@ impl TriAccel {
     #[inline]
     #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
     pub fn intersect(&self, ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
-        let k = self.k as usize;
+        let k = self.axis();
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let (o, d) = (ray.org, ray.dir);
         let denom = d[k] + self.n_u * d[ku] + self.n_v * d[kv];

@@ -12,7 +12,7 @@ use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Simd, Vf};
 
 impl Prims {
-    /// Folds triangles `tris` (ids below `sphere_base`, at most `W::LANES`) into `best`
+    /// Folds the triangles in slots `tris` (below `sphere_base`, at most `W::LANES`) into `best`
     /// exactly as [`Prims::intersect_leaf`] does: for each in order, a hit under
     /// `limit = min(next_up(best.t), ray.t_max)` replaces `best` when [`Hit::is_closer`].
     #[inline(always)]
@@ -21,7 +21,7 @@ impl Prims {
         let n = tris.len();
         let rec = |i: usize| &self.tris[tris[i.min(n - 1)] as usize];
         let f = |g: fn(&super::TriAccel) -> f32| Vf::<W>::from_fn(|i| g(rec(i)));
-        let kf = Vf::<W>::from_fn(|i| rec(i).k as f32);
+        let kf = Vf::<W>::from_fn(|i| rec(i).axis() as f32);
         let (m0, m1) = (kf.cmp_eq(Vf::<W>::ZERO), kf.cmp_eq(Vf::<W>::ONE));
         let splat = Vf::<W>::splat;
         // Axis k, k + 1, k + 2 (mod 3) of a vector, per lane.
@@ -70,12 +70,13 @@ impl Prims {
                 continue;
             }
             let (ei, bi) = (edge.lane(i), bound.lane(i));
-            let prim = tris[i];
+            let slot = tris[i] as usize;
             let hit = if ei >= bi {
                 (ti > ray.t_min && ti < limit).then(|| (ti, u.lane(i), v.lane(i)))
             } else {
-                exact_rule(ray, limit, &self.corners[prim as usize])
+                exact_rule(ray, limit, &self.corners[slot])
             };
+            let prim = self.tris[slot].id();
             if let Some((t, u, v)) = hit
                 && Hit::is_closer(t, prim, best)
             {

@@ -84,7 +84,7 @@ impl TriAccel {
         corners: &[Vec3; 3],
     ) -> LaneHits<W> {
         let splat = Vf::<W>::splat;
-        let k = self.k as usize;
+        let k = self.axis();
         let (ku, kv) = (MOD3[k + 1], MOD3[k + 2]);
         let (o, d) = (&rays.org, &rays.dir);
         let ray = Projected::<W> {

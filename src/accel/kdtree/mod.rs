@@ -4,7 +4,9 @@
 //! Layout: `nodes` is one contiguous array of 8-byte [`node::KdNode`]s, children in
 //! pairs; a leaf holds its `[first, count]`, a contiguous run of `prim_indices`
 //! (the same ranges, in build order, stay in `leaves` for statistics and tests). Primitive records live in `prims` (the same [`Prims`] the brute-force
-//! oracle tests). Planes are not in the tree; traversal tests them beside it.
+//! oracle tests), where the build may place the triangles' records in the order the
+//! leaves first name them (the indices then name those slots; hits still report ids).
+//! Planes are not in the tree; traversal tests them beside it.
 //!
 //! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and
 //! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], the leaves' ranges
@@ -84,12 +86,14 @@ impl KdTree {
         &self.leaves
     }
 
-    /// The primitive ids the leaves point into.
+    /// The slots of [`KdTree::prims`] the leaves point into ([`Prims::id`] gives each
+    /// one's primitive id; a triangle's slot differs from its id where the build placed
+    /// the records in leaf order).
     pub fn prim_indices(&self) -> &[u32] {
         &self.prim_indices
     }
 
-    /// The primitive records the leaves' ids refer to.
+    /// The primitive records the leaves' slots refer to.
     pub fn prims(&self) -> &Prims {
         &self.prims
     }

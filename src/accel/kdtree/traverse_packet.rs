@@ -451,12 +451,13 @@ impl KdTree {
             let groups = lanes.iter().filter(|l| l.any()).count() as u64;
             bump(|c| c.prim_tests += groups * prims.len() as u64);
             for &p in prims {
+                let id = self.prims.id(p);
                 for g in 0..G {
                     if lanes[g].any() {
                         let hits = self
                             .prims
                             .intersect_prim_packet(p, rays(g), lanes[g], limit[g]);
-                        if best[g].merge(&hits, p).any() {
+                        if best[g].merge(&hits, id).any() {
                             limit[g] = next_up(best[g].t).min(rays(g).t_max);
                         }
                     }
