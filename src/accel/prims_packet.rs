@@ -149,6 +149,9 @@ impl Prims {
         active: Mask<W>,
         best: &mut HitPacket<W>,
     ) {
+        if self.planes.is_empty() {
+            return;
+        }
         let active = active & rays.usable();
         for (i, p) in self.planes.iter().enumerate() {
             let hits = intersect_plane_packet(p, rays, active, best.t.min(rays.t_max));

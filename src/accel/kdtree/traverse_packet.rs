@@ -162,7 +162,14 @@ impl KdTree {
     /// [`crate::accel::Accel::intersect`], `t`, `u`, `v` bit-identical.
     pub fn intersect_packet<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
         let mut best = HitPacket::miss();
-        let (groups, count) = coherent_groups(rays, rays.active.bits());
+        // Every lane is clipped to the tree's box once; only those that reach it are
+        // grouped and walked.
+        let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, rays.active);
+        let (groups, count) = if reach.any() {
+            coherent_groups(rays, reach.bits())
+        } else {
+            ([0; 8], 0)
+        };
         let mut alone = [None; MAX_LANES];
         let mut any_alone = false;
         for &group in &groups[..count] {
@@ -179,7 +186,13 @@ impl KdTree {
                     }
                 }
             } else {
-                self.traverse_packet::<W, false>(rays, Mask::<W>::from_bits(group), &mut best);
+                let lanes = Mask::<W>::from_bits(group);
+                self.traverse_packet_from::<W, false>(
+                    rays,
+                    lanes,
+                    (0, lanes, t_near, t_far),
+                    &mut best,
+                );
             }
         }
         if any_alone {
@@ -196,8 +209,13 @@ impl KdTree {
     pub fn occluded_packet<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
         let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
         let mut best = HitPacket::miss();
-        let rest = (rays.active & !by_plane).bits();
-        let (groups, count) = coherent_groups(rays, rest);
+        let (reach, t_near, t_far) =
+            clip_to_box_packet(&self.bounds, rays, rays.active & !by_plane);
+        let (groups, count) = if reach.any() {
+            coherent_groups(rays, reach.bits())
+        } else {
+            ([0; 8], 0)
+        };
         let mut occluded = by_plane.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
@@ -216,30 +234,26 @@ impl KdTree {
             } else {
                 let lanes = Mask::<W>::from_bits(group);
                 occluded |= self
-                    .traverse_packet::<W, true>(rays, lanes, &mut best)
+                    .traverse_packet_from::<W, true>(
+                        rays,
+                        lanes,
+                        (0, lanes, t_near, t_far),
+                        &mut best,
+                    )
                     .bits();
             }
         }
         occluded
     }
 
-    /// Walks the tree with the lanes of `active`, which agree on every direction sign.
-    /// Closest hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit
-    /// anything in `(t_min, t_max)`, each lane leaving at its first hit.
-    pub(super) fn traverse_packet<W: Simd, const ANY_HIT: bool>(
-        &self,
-        rays: &RayPacket<W>,
-        active: Mask<W>,
-        best: &mut HitPacket<W>,
-    ) -> Mask<W> {
-        let (lanes, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, active);
-        self.traverse_packet_from::<W, ANY_HIT>(rays, active, (0, lanes, t_near, t_far), best)
-    }
-
-    /// [`Self::traverse_packet`] from `node`, the lanes `lanes` arriving there with the
-    /// interval `[t_near, t_far]` they had when clipped to the tree's box (the entry
-    /// point of [`super::traverse_tile`], which only passes near-only and far-only steps
-    /// that every lane takes, so no lane needs anything outside `node`'s subtree).
+    /// Walks the tree from `node` with the lanes `lanes` (of `active`, which agree on
+    /// every direction sign), arriving there with the interval `[t_near, t_far]` they
+    /// had when clipped to the tree's box: from the root, or from the entry point of
+    /// [`super::traverse_tile`], which only passes near-only and far-only steps that
+    /// every lane takes, so no lane needs anything outside `node`'s subtree. Closest
+    /// hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit anything
+    /// in `(t_min, t_max)`, each lane leaving at its first hit, and stops once every
+    /// lane of `active` has.
     pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &RayPacket<W>,
