@@ -410,9 +410,10 @@ impl Prims {
     /// reports its id.
     #[inline]
     pub fn intersect_prim(&self, slot: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
+        // Spheres and boxes sit at their id; a triangle's record names its own.
         let prim = slot;
         if prim < self.sphere_base {
-            let i = prim as usize;
+            let i = slot as usize;
             let (t, u, v) = self.tris[i].intersect(ray, t_max, &self.corners[i])?;
             Some(Hit {
                 t,

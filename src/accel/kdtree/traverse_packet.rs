@@ -125,18 +125,21 @@ fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
     group.count_ones() <= W::SCALAR_GROUP_MAX
 }
 
-/// How many groups the traversal walks the active lanes of `rays` in: 1 for a packet
-/// whose lanes agree on every direction sign, else one per sign octant present.
-/// `raypack bench` reports the share of packets of a ray set that split.
+/// How many groups the traversal walks the active lanes of `rays` in: none without an
+/// active lane, 1 for a packet whose lanes agree on every direction sign, else one per
+/// sign octant present. `raypack bench` reports the share of packets of a ray set that split.
 pub fn sign_group_count<W: Simd>(rays: &RayPacket<W>) -> usize {
     sign_groups(rays, rays.active.bits()).1
 }
 
-/// Lane groups of `active` that agree on every direction sign: one group when the
-/// packet is coherent, else one per sign octant present (zero components count as
-/// positive; they agree with either side), at most eight.
+/// Lane groups of `active` that agree on every direction sign: none when `active` is
+/// empty, one group when the packet is coherent, else one per sign octant present
+/// (zero components count as positive; they agree with either side), at most eight.
 #[inline]
 fn sign_groups<W: Simd>(rays: &RayPacket<W>, active: LaneBits) -> ([LaneBits; 8], usize) {
+    if active == 0 {
+        return ([0; 8], 0);
+    }
     let neg = rays.dir.map(|d| d.cmp_lt(Vf::<W>::ZERO).bits() & active);
     let pos = rays.dir.map(|d| d.cmp_gt(Vf::<W>::ZERO).bits() & active);
     let mut groups = [0; 8];
@@ -165,11 +168,7 @@ impl KdTree {
         // Every lane is clipped to the tree's box once; only those that reach it are
         // grouped and walked.
         let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, rays.active);
-        let (groups, count) = if reach.any() {
-            coherent_groups(rays, reach.bits())
-        } else {
-            ([0; 8], 0)
-        };
+        let (groups, count) = coherent_groups(rays, reach.bits());
         let mut alone = [None; MAX_LANES];
         let mut any_alone = false;
         for &group in &groups[..count] {
@@ -211,11 +210,7 @@ impl KdTree {
         let mut best = HitPacket::miss();
         let (reach, t_near, t_far) =
             clip_to_box_packet(&self.bounds, rays, rays.active & !by_plane);
-        let (groups, count) = if reach.any() {
-            coherent_groups(rays, reach.bits())
-        } else {
-            ([0; 8], 0)
-        };
+        let (groups, count) = coherent_groups(rays, reach.bits());
         let mut occluded = by_plane.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
