@@ -187,6 +187,24 @@ fn unusable_rays() -> Vec<Ray> {
     ]
 }
 
+/// Usable rays whose direction has a subnormal component (its inverse is infinite, so
+/// the lane walks set such a ray up with the scalar code) or a tiny normal one, aimed
+/// at the middle of `b` from outside and from its centre.
+fn tiny_component_rays(b: &Aabb) -> Vec<Ray> {
+    let c = (b.min + b.max) * 0.5;
+    let mut out = Vec::new();
+    for tiny in [1e-40f32, -1e-40, f32::MIN_POSITIVE, -1e-30] {
+        for axis in 0..3 {
+            let mut d = Vec3::new(0.6, -0.48, 0.64);
+            d[axis] = tiny;
+            let d = d.normalize();
+            out.push(Ray::new(c, d, 0.0, f32::INFINITY));
+            out.push(Ray::new(c - d * b.diagonal(), d, 0.0, f32::INFINITY));
+        }
+    }
+    out
+}
+
 /// Shadow rays along camera rays that hit, ending just before, at and just after the
 /// hit, and starting at it.
 fn cut_rays<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> Vec<Ray> {
@@ -253,6 +271,7 @@ fn check_geometry(g: &Geometry, camera: &Camera, seed: u64, what: &str) {
         rays.extend(rays_from_surfaces(g, 500, seed + 2));
     }
     rays.extend(cut_rays(&tree, &camera_set[..400]));
+    rays.extend(tiny_component_rays(&b));
     let rays = mixed_in(&rays);
     let hits = assert_tree_stream_matches(&tree, &rays, &format!("{what}, kd-tree"));
     assert!(
