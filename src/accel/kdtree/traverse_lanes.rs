@@ -116,6 +116,22 @@ struct Starts {
     hi_off: [[f32; MAX_LANES]; 3],
 }
 
+impl Starts {
+    /// No block yet.
+    fn new() -> Starts {
+        Starts {
+            base: 0,
+            end: 0,
+            begin: [Begin::Miss; MAX_LANES],
+            t_near: [0.0; MAX_LANES],
+            t_far: [0.0; MAX_LANES],
+            inv: [[0.0; MAX_LANES]; 3],
+            lo_off: [[0.0; MAX_LANES]; 3],
+            hi_off: [[0.0; MAX_LANES]; 3],
+        }
+    }
+}
+
 /// The walks of `W::LANES` rays, one per lane.
 struct Group {
     st: Lanes,
@@ -135,17 +151,29 @@ impl Group {
             best: [Hit::MISS; MAX_LANES],
             ray_of: [0; MAX_LANES],
             live: 0,
-            starts: Starts {
-                base: 0,
-                end: 0,
-                begin: [Begin::Miss; MAX_LANES],
-                t_near: [0.0; MAX_LANES],
-                t_far: [0.0; MAX_LANES],
-                inv: [[0.0; MAX_LANES]; 3],
-                lo_off: [[0.0; MAX_LANES]; 3],
-                hi_off: [[0.0; MAX_LANES]; 3],
-            },
+            starts: Starts::new(),
         }
+    }
+
+    /// Lane `i` takes ray `r` at the root with its interval `(t_near, t_far)` in the
+    /// tree's box and its per-axis `[inv, lo_off, hi_off]`, no hit yet (its walk's
+    /// stack already empty).
+    #[inline(always)]
+    fn begin(&mut self, i: usize, r: usize, (t_near, t_far): (f32, f32), axes: [[f32; 3]; 3]) {
+        self.best[i] = Hit::MISS;
+        let st = &mut self.st;
+        st.node[i] = 0;
+        st.t_near[i] = t_near;
+        st.t_far[i] = t_far;
+        st.best_t[i] = Hit::MISS.t;
+        let [inv, lo_off, hi_off] = axes;
+        for a in 0..3 {
+            st.inv[a][i] = inv[a];
+            st.lo_off[a][i] = lo_off[a];
+            st.hi_off[a][i] = hi_off[a];
+        }
+        self.ray_of[i] = r;
+        self.live |= 1 << i;
     }
 }
 
@@ -197,19 +225,8 @@ impl KdTree {
                 Begin::Miss => done(r, false, Hit::MISS),
                 Begin::Walk => {
                     g.walks[i].stack.clear();
-                    g.best[i] = Hit::MISS;
-                    let st = &mut g.st;
-                    st.node[i] = 0;
-                    st.t_near[i] = s.t_near[k];
-                    st.t_far[i] = s.t_far[k];
-                    st.best_t[i] = f32::INFINITY;
-                    for a in 0..3 {
-                        st.inv[a][i] = s.inv[a][k];
-                        st.lo_off[a][i] = s.lo_off[a][k];
-                        st.hi_off[a][i] = s.hi_off[a][k];
-                    }
-                    g.ray_of[i] = r;
-                    g.live |= 1 << i;
+                    let axes = [&s.inv, &s.lo_off, &s.hi_off].map(|v| [0, 1, 2].map(|a| v[a][k]));
+                    g.begin(i, r, (s.t_near[k], s.t_far[k]), axes);
                     return;
                 }
                 Begin::Scalar if ray.dir.cmpeq(glam::Vec3::ZERO).any() => {
@@ -218,17 +235,11 @@ impl KdTree {
                     done(r, answer, hit);
                 }
                 Begin::Scalar => {
-                    if self.start_walk(ray, &mut g.walks[i]) {
-                        let walk = &g.walks[i];
-                        g.best[i] = Hit::MISS;
-                        g.st.load_walk(i, walk, &g.best[i]);
-                        for a in 0..3 {
-                            g.st.inv[a][i] = walk.axes.inv[a];
-                            g.st.lo_off[a][i] = walk.axes.lo_off[a];
-                            g.st.hi_off[a][i] = walk.axes.hi_off[a];
-                        }
-                        g.ray_of[i] = r;
-                        g.live |= 1 << i;
+                    let walk = &mut g.walks[i];
+                    if self.start_walk(ray, walk) {
+                        let (x, interval) = (&walk.axes, (walk.t_near, walk.t_far));
+                        let axes = [&x.inv, &x.lo_off, &x.hi_off].map(|v| [v[0], v[1], v[2]]);
+                        g.begin(i, r, interval, axes);
                         return;
                     }
                     done(r, false, Hit::MISS);
@@ -439,7 +450,7 @@ mod tests {
         let tree = KdTree::build(&g);
         let mut rng = Rng::new(W::LANES as u64);
         let rays = rays(&tree.bounds, &mut rng);
-        let mut s = Group::new().starts;
+        let mut s = Starts::new();
         let (mut walks, mut scalar) = (0, 0);
         for first in (0..rays.len()).step_by(W::LANES - 1) {
             tree.start_block::<W>(&mut s, &rays, first);

@@ -253,7 +253,9 @@ impl Builder<'_> {
         out: &mut Out,
     ) {
         let mut kids = KIDS.take();
-        let levels = (self.max_depth.saturating_sub(depth) as usize).max(1);
+        // A split happens only above the depth limit: one level of children per level
+        // left.
+        let levels = self.max_depth.saturating_sub(depth) as usize;
         if kids.len() < levels {
             kids.resize(levels, [SmallNode::new(), SmallNode::new()]);
         }
