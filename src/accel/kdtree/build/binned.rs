@@ -206,6 +206,10 @@ impl Builder<'_> {
             self.build_small(cell, &node, depth, slot, out);
             return;
         }
+        if !self.may_save(&cell, n) {
+            out.leaf(slot, refs.iter().map(|r| r.prim));
+            return;
+        }
         let plane = if n >= self.params.sweep_below as usize && depth < self.max_depth {
             self.binned_plane(&cell, &refs)
         } else {

@@ -11,6 +11,9 @@
 //!   [`BuildParams::sweep_below`] primitives (the small-node size unless set higher),
 //!   or where no bin boundary beats a leaf, a node's events are made and sorted and
 //!   the exact sweep finishes its subtree.
+//! - The fast builder also stops where no subtree could save
+//!   [`BuildParams::min_saving`] of the tree's SAH cost: splits deep in dense detail that
+//!   only copy references.
 //! - Both use perfect splits ([`clip`]): a straddler's bounds in each child are those of
 //!   its part inside the child. Spheres use the squared-distance test, boxes their
 //!   intersection with the child.
@@ -107,6 +110,14 @@ pub struct BuildParams {
     /// and the sweep only takes nodes that binning cannot split (perf/kdtree.md, "Fast
     /// build, second round", measures the choice).
     pub sweep_below: u32,
+    /// The fast builder makes a node a leaf when even a perfect subtree below it could
+    /// save less than this much of the tree's SAH cost: `(K_I n - K_T)` times the node's
+    /// area over the root's, in the units `raypack info` prints the cost in. In dense
+    /// detail the greedy SAH splits on to the depth limit for gains of a millionth,
+    /// copying references at every level: 1e-5 leaves out 53% of the conference room's
+    /// nodes, and a third of its build, at the same cost and ray rates (perf/kdtree.md,
+    /// "Splits that save nothing"). The exact builder ignores it; 0 turns it off.
+    pub min_saving: f32,
 }
 
 impl Default for BuildParams {
@@ -120,6 +131,7 @@ impl Default for BuildParams {
             parallel_min_prims: 4096,
             builder: BuilderKind::Fast,
             sweep_below: 48,
+            min_saving: 1e-5,
         }
     }
 }
@@ -217,6 +229,9 @@ struct Builder<'a> {
     prim_total: usize,
     /// Sweep buffers that subtrees built apart have given back.
     spare: std::sync::Mutex<Vec<sweep::SweepSpace>>,
+    /// [`BuildParams::min_saving`] times the root cell's surface area (0 for the exact
+    /// builder): what `(K_I n - K_T)` times a node's surface area must reach.
+    min_saving_area: f32,
 }
 
 /// Figures about one build, for `raypack info` and perf/.
@@ -359,6 +374,10 @@ impl KdTree {
             max_depth,
             prim_total: bounded as usize,
             spare: Default::default(),
+            min_saving_area: match params.builder {
+                BuilderKind::Exact => 0.0,
+                BuilderKind::Fast => params.min_saving * cell.surface_area(),
+            },
         };
         let mut out = Out::apart();
         match params.builder {
@@ -445,6 +464,16 @@ fn leaf_lines(
 }
 
 impl Builder<'_> {
+    /// Whether a node of `n` references in `cell` may split at all: false when no subtree
+    /// could save [`BuildParams::min_saving`] of the tree's cost.
+    #[inline]
+    fn may_save(&self, cell: &Aabb, n: usize) -> bool {
+        let p = self.params;
+        self.min_saving_area <= 0.0
+            || (p.intersection_cost * n as f32 - p.traversal_cost) * cell.surface_area()
+                >= self.min_saving_area
+    }
+
     /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.
     fn clip(&self, prim: u32, cell: &Aabb) -> Option<Aabb> {
         match self.g.prim_ref(prim) {

@@ -273,7 +273,7 @@ impl Builder<'_> {
         out: &mut Out,
         levels: &mut [[SmallNode; 2]],
     ) {
-        let plane = if node.len == 0 || depth >= self.max_depth {
+        let plane = if node.len == 0 || depth >= self.max_depth || !self.may_save(&cell, node.len) {
             None
         } else {
             self.small_plane(&cell, node)

@@ -232,7 +232,10 @@ impl Builder<'_> {
             self.build_small(task.cell, &node, task.depth, slot, out);
             return;
         }
-        let split = if task.prim_count == 0 || task.depth >= self.max_depth {
+        let split = if task.prim_count == 0
+            || task.depth >= self.max_depth
+            || !self.may_save(&task.cell, task.prim_count as usize)
+        {
             None
         } else {
             self.find_split(&task)
