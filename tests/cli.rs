@@ -409,6 +409,8 @@ fn bench_cost_flags_change_the_tree_not_the_hits() {
         ["--traversal-cost", "-1"],
         ["--intersection-cost", "0"],
         ["--traversal-cost", "NaN"],
+        ["--min-saving", "-1"],
+        ["--min-saving", "inf"],
     ] {
         let flag = format!("{}={}", bad[0], bad[1]);
         let out = raypack(&["bench", "spd:tetra:1", &flag]);

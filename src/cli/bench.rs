@@ -315,10 +315,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     threads.dedup();
 
     check_size_flags(args.width, args.height)?;
+    let params = args.tree.params()?;
 
     let scene = load_scene(&args.scene)?;
-    let (accel, build_seconds, mut sets) =
-        prepare(&scene, args.width, args.height, &args.tree.params()?)?;
+    let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height, &params)?;
     if let Some(dir) = &args.rays {
         for name in &args.sets {
             let set = rayset::read_rays(&dir.join(format!("{name}.rays")))?;

@@ -52,6 +52,8 @@ struct Sah {
     traversal_cost: f32,
     intersection_cost: f32,
     empty_bonus: f32,
+    /// [`BuildParams::min_saving`] (the fast builder's; the exact one ignores it).
+    min_saving: f32,
 }
 
 #[derive(Serialize, Debug)]
@@ -118,14 +120,14 @@ fn reset_peak() -> Option<u64> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     super::check_outputs([("--json", args.json.as_ref())])?;
-    let scene = scenes::load(&args.scene)?;
-    super::warn(&scene.warnings);
-    let geometry = &scene.geometry;
     let threads = super::thread_count(args.threads);
     let params = BuildParams {
         parallel: threads > 1,
         ..args.tree.params()?
     };
+    let scene = scenes::load(&args.scene)?;
+    super::warn(&scene.warnings);
+    let geometry = &scene.geometry;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -279,6 +281,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 traversal_cost: params.traversal_cost,
                 intersection_cost: params.intersection_cost,
                 empty_bonus: params.empty_bonus,
+                min_saving: params.min_saving,
             },
             memory,
             primary,

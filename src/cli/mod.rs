@@ -82,6 +82,11 @@ pub struct TreeArgs {
     /// The fast builder's switch from binning to exact pricing, in primitives per node.
     #[arg(long, default_value_t = BuildParams::default().sweep_below)]
     pub sweep_below: u32,
+    /// The fast builder's smallest saving worth a subtree, in SAH cost units: a node
+    /// that no subtree could save this much of the tree's cost from becomes a leaf (0:
+    /// split wherever the SAH gains at all).
+    #[arg(long, default_value_t = BuildParams::default().min_saving)]
+    pub min_saving: f32,
 }
 
 fn parse_builder(s: &str) -> Result<BuilderKind, String> {
@@ -102,12 +107,16 @@ impl TreeArgs {
         if !(0.0..1.0).contains(&self.empty_bonus) {
             return Err(BadInput("--empty-bonus must be in [0, 1)".into()).into());
         }
+        if !ok(self.min_saving) {
+            return Err(BadInput("--min-saving must be finite and >= 0".into()).into());
+        }
         Ok(BuildParams {
             traversal_cost: self.traversal_cost,
             intersection_cost: self.intersection_cost,
             empty_bonus: self.empty_bonus,
             builder: self.builder,
             sweep_below: self.sweep_below,
+            min_saving: self.min_saving,
             ..BuildParams::default()
         })
     }
