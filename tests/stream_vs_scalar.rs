@@ -38,12 +38,16 @@ const POISON: Hit = Hit {
 };
 
 /// The kd-tree with its stream queries always on the lane walks at `width` lanes (4, 8
-/// or 16): the tree's own stream queries walk ray by ray when the tree is small, and
-/// most test trees are, and use the native width only.
-struct Lanes<'a>(&'a KdTree, usize);
+/// or 16) in `groups` groups of lanes (1 or 2): the tree's own stream queries walk ray
+/// by ray when the tree is small, and most test trees are, use the native width only
+/// and two groups only in large trees.
+struct Lanes<'a>(&'a KdTree, usize, usize);
 
 /// Every width of the lane walks, tested on every input.
 const WIDTHS: [usize; 3] = [4, 8, 16];
+
+/// Both group counts of the lane walks, tested on every input.
+const GROUPS: [usize; 2] = [1, 2];
 
 impl Accel for Lanes<'_> {
     fn bounds(&self) -> Aabb {
@@ -57,16 +61,16 @@ impl Accel for Lanes<'_> {
     }
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
         match self.1 {
-            4 => self.0.intersect_lanes::<W4>(rays, hits),
-            8 => self.0.intersect_lanes::<W8>(rays, hits),
-            _ => self.0.intersect_lanes::<W16>(rays, hits),
+            4 => self.0.intersect_lanes_in::<W4>(rays, hits, self.2),
+            8 => self.0.intersect_lanes_in::<W8>(rays, hits, self.2),
+            _ => self.0.intersect_lanes_in::<W16>(rays, hits, self.2),
         }
     }
     fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
         match self.1 {
-            4 => self.0.occluded_lanes::<W4>(rays, occluded),
-            8 => self.0.occluded_lanes::<W8>(rays, occluded),
-            _ => self.0.occluded_lanes::<W16>(rays, occluded),
+            4 => self.0.occluded_lanes_in::<W4>(rays, occluded, self.2),
+            8 => self.0.occluded_lanes_in::<W8>(rays, occluded, self.2),
+            _ => self.0.occluded_lanes_in::<W16>(rays, occluded, self.2),
         }
     }
 }
@@ -76,7 +80,10 @@ impl Accel for Lanes<'_> {
 /// hits.
 fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
     for w in WIDTHS {
-        assert_stream_matches(&Lanes(tree, w), rays, &format!("{what}, {w} lanes"));
+        for g in GROUPS {
+            let how = format!("{what}, {w} lanes, {g} groups");
+            assert_stream_matches(&Lanes(tree, w, g), rays, &how);
+        }
     }
     assert_stream_matches(tree, rays, what)
 }
@@ -301,9 +308,14 @@ fn check_standard_sets(g: &Geometry, camera: &Camera, width: u32, height: u32, w
 fn empty_and_single_ray_batches() {
     let g = generate::random_soup(200, 0.2, 5);
     let tree = KdTree::build(&g);
-    let lanes = WIDTHS.map(|w| Lanes(&tree, w));
-    let all: [&dyn Accel; 4] = [&tree, &lanes[0], &lanes[1], &lanes[2]];
-    for a in all {
+    let lanes: Vec<Lanes> = WIDTHS
+        .iter()
+        .flat_map(|&w| GROUPS.map(|g| Lanes(&tree, w, g)))
+        .collect();
+    let all: Vec<&dyn Accel> = std::iter::once(&tree as &dyn Accel)
+        .chain(lanes.iter().map(|l| l as &dyn Accel))
+        .collect();
+    for &a in &all {
         let (hits, occluded) = stream_answers(a, &[]);
         assert!(hits.is_empty() && occluded.is_empty());
     }
@@ -317,7 +329,7 @@ fn empty_and_single_ray_batches() {
     assert!(hit_one, "no camera ray hits the soup");
     // A stream of unusable rays only.
     let bad = unusable_rays();
-    for a in all {
+    for &a in &all {
         let (hits, occluded) = stream_answers(a, &bad);
         assert!(
             hits.iter()

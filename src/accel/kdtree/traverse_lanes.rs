@@ -25,7 +25,9 @@ use super::traverse::{PLANE_SLACK, Walk};
 use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::RayPacket;
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, max_abs};
+use crate::simd::{
+    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, max_abs, prefetch,
+};
 
 /// The lanes' walk state as arrays, one entry per lane: what the SIMD step loads and
 /// stores, and what the lane-by-lane code reads and writes between steps.
@@ -182,18 +184,42 @@ impl KdTree {
     /// lane, calling `done(i, answer, best)` once per ray `i` (in no particular order)
     /// with the scalar traversal's answer and closest hit (planes not folded in). With
     /// `ANY_HIT`, a ray a plane occludes is answered without walking.
+    ///
+    /// `groups` (1 or 2) groups of lanes step in turn; with two, each group's next nodes
+    /// are prefetched at the end of its step and load while the other group steps:
+    /// twice the loads in flight, which pays in trees much larger than the cache
+    /// (perf/stream.md, "Two groups of lanes").
     pub(super) fn walk_lanes<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &[Ray],
+        groups: usize,
         mut done: impl FnMut(usize, bool, Hit),
     ) {
-        let mut g = Group::new();
+        assert!(
+            (1..=2).contains(&groups),
+            "walk_lanes: 1 or 2 groups, not {groups}"
+        );
+        let mut all = [Group::new(), Group::new()];
+        let groups = &mut all[..groups];
         let mut next = 0;
-        for i in 0..W::LANES {
-            self.start_lane::<W, ANY_HIT>(&mut g, i, rays, &mut next, &mut done);
+        for g in groups.iter_mut() {
+            for i in 0..W::LANES {
+                self.start_lane::<W, ANY_HIT>(g, i, rays, &mut next, &mut done);
+            }
         }
-        while g.live != 0 {
-            self.lanes_step::<W, ANY_HIT>(&mut g, rays, &mut next, &mut done);
+        if let [g] = groups {
+            while g.live != 0 {
+                self.lanes_step::<W, ANY_HIT>(g, rays, &mut next, &mut done);
+            }
+            return;
+        }
+        while groups.iter().any(|g| g.live != 0) {
+            for g in groups.iter_mut().filter(|g| g.live != 0) {
+                self.lanes_step::<W, ANY_HIT>(g, rays, &mut next, &mut done);
+                for i in lanes_of(g.live) {
+                    prefetch(&self.nodes[g.st.node[i] as usize]);
+                }
+            }
         }
     }
 
