@@ -19,6 +19,14 @@ use raypack::ray::Ray;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane};
 
+/// A tree's nodes as bits (split, leaf flag, children), to compare trees node for node.
+fn node_bits(t: &KdTree) -> Vec<(u32, bool, u32)> {
+    t.nodes()
+        .iter()
+        .map(|n| (n.split.to_bits(), n.is_leaf(), n.children()))
+        .collect()
+}
+
 fn build_checked(g: &Geometry, params: &BuildParams) -> KdTree {
     let tree = KdTree::build_with(g, params);
     if let Err(e) = tree.validate() {
@@ -246,12 +254,6 @@ fn parallel_equals_serial(params: BuildParams) {
         .build()
         .expect("thread pool");
     let c = pool.install(|| build_checked(&g, &parallel));
-    let node_bits = |t: &KdTree| -> Vec<(u32, bool, u32)> {
-        t.nodes()
-            .iter()
-            .map(|n| (n.split.to_bits(), n.is_leaf(), n.children()))
-            .collect()
-    };
     assert!(
         a.nodes().len() > 1000,
         "tree too small to exercise the parallel build"
@@ -420,12 +422,6 @@ fn splits_that_save_nothing_are_left_out() {
     assert!(more.nodes < on.nodes, "{} against {}", more.nodes, on.nodes);
     let (a, _) = with(0.0, BuilderKind::Exact);
     let (b, _) = with(100.0 * shipped, BuilderKind::Exact);
-    let node_bits = |t: &KdTree| -> Vec<(u32, bool, u32)> {
-        t.nodes()
-            .iter()
-            .map(|n| (n.split.to_bits(), n.is_leaf(), n.children()))
-            .collect()
-    };
     assert!(node_bits(&a) == node_bits(&b), "exact trees differ");
     assert!(a.prim_indices() == b.prim_indices(), "exact lists differ");
 }

@@ -206,11 +206,11 @@ impl Builder<'_> {
             self.build_small(cell, &node, depth, slot, out);
             return;
         }
-        if !self.may_save(&cell, n) {
+        if !self.may_split(&cell, n, depth) {
             out.leaf(slot, refs.iter().map(|r| r.prim));
             return;
         }
-        let plane = if n >= self.params.sweep_below as usize && depth < self.max_depth {
+        let plane = if n >= self.params.sweep_below as usize {
             self.binned_plane(&cell, &refs)
         } else {
             None

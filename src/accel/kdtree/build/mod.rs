@@ -464,14 +464,17 @@ fn leaf_lines(
 }
 
 impl Builder<'_> {
-    /// Whether a node of `n` references in `cell` may split at all: false when no subtree
-    /// could save [`BuildParams::min_saving`] of the tree's cost.
+    /// Whether a node of `n` references in `cell` at `depth` may split at all: false when
+    /// it is empty, at the depth limit, or when no subtree could save
+    /// [`BuildParams::min_saving`] of the tree's cost. Every builder's nodes stop here.
     #[inline]
-    fn may_save(&self, cell: &Aabb, n: usize) -> bool {
+    fn may_split(&self, cell: &Aabb, n: usize, depth: u32) -> bool {
         let p = self.params;
-        self.min_saving_area <= 0.0
-            || (p.intersection_cost * n as f32 - p.traversal_cost) * cell.surface_area()
-                >= self.min_saving_area
+        n != 0
+            && depth < self.max_depth
+            && (self.min_saving_area <= 0.0
+                || (p.intersection_cost * n as f32 - p.traversal_cost) * cell.surface_area()
+                    >= self.min_saving_area)
     }
 
     /// Bounds of the part of `prim` inside `cell`, or `None` when it misses the cell.

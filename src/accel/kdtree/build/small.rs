@@ -273,10 +273,10 @@ impl Builder<'_> {
         out: &mut Out,
         levels: &mut [[SmallNode; 2]],
     ) {
-        let plane = if node.len == 0 || depth >= self.max_depth || !self.may_save(&cell, node.len) {
-            None
-        } else {
+        let plane = if self.may_split(&cell, node.len, depth) {
             self.small_plane(&cell, node)
+        } else {
+            None
         };
         let Some(Plane {
             axis,

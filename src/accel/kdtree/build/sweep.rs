@@ -232,13 +232,10 @@ impl Builder<'_> {
             self.build_small(task.cell, &node, task.depth, slot, out);
             return;
         }
-        let split = if task.prim_count == 0
-            || task.depth >= self.max_depth
-            || !self.may_save(&task.cell, task.prim_count as usize)
-        {
-            None
-        } else {
+        let split = if self.may_split(&task.cell, task.prim_count as usize, task.depth) {
             self.find_split(&task)
+        } else {
+            None
         };
         let leaf_cost = self.params.intersection_cost * task.prim_count as f32;
         let Some(split) = split.filter(|s| s.cost < leaf_cost) else {
