@@ -22,7 +22,7 @@
 
 use super::small::{SMALL, SmallNode};
 use super::sweep::SweepSpace;
-use super::{Builder, Out, PlaneCost, Ref, child_cells, tree_bounds};
+use super::{Builder, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits, tree_bounds};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
 use glam::{Vec3, Vec3A};
@@ -30,6 +30,7 @@ use rayon::prelude::*;
 
 /// Most bins per axis (Mitsuba's kd-tree builder uses 128).
 const BINS: usize = 128;
+const _: () = assert!(BINS.is_power_of_two(), "bin indices are masked to BINS - 1");
 
 /// Fewest bins per axis: a node of n references gets n / 4 bins between the two (the
 /// refinement prices the bounds near the best boundary exactly, so small nodes lose
@@ -110,7 +111,7 @@ impl Binner {
         let f_max = (Vec3A::from(b.max) - lo) * scale;
         let first = f_min.max(Vec3A::ZERO).min(top - Vec3A::ONE).floor();
         let last = (f_max.ceil().max(Vec3A::ONE).min(top) - Vec3A::ONE).max(first);
-        (first.to_array().map(whole), last.to_array().map(whole))
+        (bin_indices(first), bin_indices(last))
     }
 
     /// The bins of the coordinates `min`, `max` on `axis` as whole floats (the
@@ -126,6 +127,61 @@ impl Binner {
         (first, if last > first { last } else { first })
     }
 
+    /// The bin of a maximum `max` on `axis` before it is raised to its minimum's bin
+    /// (see [`Binner::bins_as_floats`]).
+    #[inline]
+    fn last_bin(&self, max: f32, axis: usize) -> f32 {
+        let f_max = (max - self.lo[axis]) * self.scale[axis];
+        f_max.ceil().clamp(1.0, self.bins as f32) - 1.0
+    }
+
+    /// The least coordinate on `axis` that `bin_of`, a bin that never falls as the
+    /// coordinate grows, puts in bin `k` or above: -inf when every coordinate is,
+    /// +inf when none is. Found from the bin edge by stepping a float at a time (the
+    /// edge's rounding moves it a few steps at most), or by bisection should it not.
+    fn least_with(&self, axis: usize, k: usize, bin_of: impl Fn(f32) -> f32) -> f32 {
+        let k = k as f32;
+        let at_least = |o: u32| bin_of(from_order_bits(o)) >= k;
+        let (lowest, highest) = (order_bits(f32::NEG_INFINITY), order_bits(f32::INFINITY));
+        if at_least(lowest) {
+            return f32::NEG_INFINITY;
+        }
+        if !at_least(highest) {
+            return f32::INFINITY;
+        }
+        // Invariant of the bisection: `!at_least(lo) && at_least(hi)`.
+        let (mut lo, mut hi) = (lowest, highest);
+        let edge = order_bits(self.lo[axis] + k / self.scale[axis]);
+        if lowest < edge && edge <= highest {
+            // Walk from the edge to the answer, a float at a time.
+            let mut o = edge;
+            for _ in 0..8 {
+                match (at_least(o - 1), at_least(o)) {
+                    (false, true) => return from_order_bits(o),
+                    (true, _) => o -= 1,
+                    (false, false) => o += 1,
+                }
+                if !(lowest < o && o <= highest) {
+                    break;
+                }
+            }
+            if at_least(edge) {
+                hi = edge;
+            } else {
+                lo = edge;
+            }
+        }
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if at_least(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        from_order_bits(hi)
+    }
+
     /// Counts `refs` into `bins`.
     fn count(&self, refs: &[Ref], bins: &mut Bins) {
         for r in refs {
@@ -138,11 +194,51 @@ impl Binner {
     }
 }
 
-/// A whole float in `0..2^23` as an index: its bits after adding 2^23 (no float-to-int
-/// conversion, which Rust makes saturate with extra compares).
+/// Whole floats in `0..BINS` as indices: their bits after adding 2^23, in one vector
+/// add (no float-to-int conversion, which Rust makes saturate with extra compares);
+/// masked to the bins so indexing needs no bounds check.
 #[inline]
-fn whole(x: f32) -> usize {
-    ((x + 8_388_608.0).to_bits() & 0x7f_ffff) as usize
+fn bin_indices(x: Vec3A) -> [usize; 3] {
+    let bits = (x + Vec3A::splat(8_388_608.0)).to_array().map(f32::to_bits);
+    bits.map(|b| b as usize & (BINS - 1))
+}
+
+/// Whether a reference's first and last bins on one axis are among the two bins
+/// around boundary `i` (`i - 1` and `i`), from its coordinates by compares: the bins'
+/// edges as coordinates, found once per node, instead of binning every coordinate. The
+/// same answers as [`Binner::bins_as_floats`], since bins never fall as coordinates
+/// grow.
+struct NearBins {
+    /// The least minimum whose bin is `i - 1` or more, and `i + 1` or more.
+    first_lo: f32,
+    first_hi: f32,
+    /// The same for a maximum's own bin ([`Binner::last_bin`]).
+    last_lo: f32,
+    last_hi: f32,
+}
+
+impl NearBins {
+    fn new(binner: &Binner, axis: usize, i: usize) -> NearBins {
+        let first = |x| binner.bins_as_floats(x, x, axis).0;
+        let last = |x| binner.last_bin(x, axis);
+        NearBins {
+            first_lo: binner.least_with(axis, i - 1, first),
+            first_hi: binner.least_with(axis, i + 1, first),
+            last_lo: binner.least_with(axis, i - 1, last),
+            last_hi: binner.least_with(axis, i + 1, last),
+        }
+    }
+
+    /// `(first near, last near)` for a reference from `min` to `max`: the last bin is
+    /// the maximum's own bin raised to the first.
+    #[inline]
+    fn test(&self, min: f32, max: f32) -> (bool, bool) {
+        if min >= self.first_hi {
+            return (false, false);
+        }
+        let first = min >= self.first_lo;
+        (first, max < self.last_hi && (first || max >= self.last_lo))
+    }
 }
 
 /// The bin boundary a node's plane is refined around.
@@ -325,20 +421,18 @@ impl Builder<'_> {
         let base_right: u32 = bins.ends[axis][i + 1..].iter().sum();
         // Minima (planar references included), maxima of the others, planar positions.
         let (mut mins, mut maxs, mut planars) = (Vec::new(), Vec::new(), Vec::new());
-        let (below, above) = ((i - 1) as f32, i as f32);
-        let near = |bin: f32| bin == below || bin == above;
+        let near = NearBins::new(&binner, axis, i);
         for r in refs {
             let (a, b) = (r.bounds.min.as_ref()[axis], r.bounds.max.as_ref()[axis]);
-            let (first, last) = binner.bins_as_floats(a, b, axis);
-            let (a, b) = (a + 0.0, b + 0.0);
-            if near(first) {
-                mins.push(a);
+            let (first, last) = near.test(a, b);
+            if first {
+                mins.push(a + 0.0);
             }
-            if near(last) {
+            if last {
                 if a == b {
-                    planars.push(a)
+                    planars.push(a + 0.0)
                 } else {
-                    maxs.push(b)
+                    maxs.push(b + 0.0)
                 }
             }
         }
@@ -453,6 +547,53 @@ mod tests {
             .saturating_sub(1)
             .max(first);
         (first, last)
+    }
+
+    #[test]
+    fn near_bins_by_compares_equal_near_bins_by_binning() {
+        let mut rng = crate::scene::generate::Rng::new(12);
+        for trial in 0..200 {
+            let lo = Vec3::new(rng.range(-5.0, 5.0), 0.0, -1e-3);
+            let extent = Vec3::new(rng.range(1e-3, 10.0), 1e4, 2e-3);
+            let cell = Aabb::new(lo, lo + extent);
+            let binner = Binner::new(&cell, [48, 64, 200, 511, 4096][trial % 5]);
+            for axis in 0..3 {
+                let (c_lo, c_hi) = (cell.min[axis], cell.max[axis]);
+                for i in 1..binner.bins {
+                    let near = NearBins::new(&binner, axis, i);
+                    let edge = |k: usize| c_lo + (c_hi - c_lo) * (k as f32 / binner.bins as f32);
+                    for _ in 0..64 {
+                        // Coordinates anywhere, a little outside the cell, on and a float
+                        // either side of the bin edges, and +-0.
+                        let pick = |rng: &mut crate::scene::generate::Rng| match rng.next_u64() % 4
+                        {
+                            0 => rng.range(c_lo - 0.1 * extent[axis], c_hi + 0.1 * extent[axis]),
+                            1 => {
+                                let e = edge((i + (rng.next_u64() % 5) as usize).saturating_sub(2));
+                                let step = (rng.next_u64() % 3) as i32 - 1;
+                                from_order_bits(order_bits(e).wrapping_add_signed(step))
+                            }
+                            2 => [0.0, -0.0][(rng.next_u64() % 2) as usize],
+                            _ => edge((rng.next_u64() % (binner.bins as u64 + 1)) as usize),
+                        };
+                        let (mut a, mut b) = (pick(&mut rng), pick(&mut rng));
+                        if rng.next_u64().is_multiple_of(8) {
+                            b = a;
+                        }
+                        if a > b {
+                            (a, b) = (b, a);
+                        }
+                        let (first, last) = binner.bins_as_floats(a, b, axis);
+                        let by_bins = |bin: f32| bin == (i - 1) as f32 || bin == i as f32;
+                        assert_eq!(
+                            near.test(a, b),
+                            (by_bins(first), by_bins(last)),
+                            "cell {cell:?} axis {axis} boundary {i}: {a} {b}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
