@@ -25,8 +25,9 @@ use super::sweep::SweepSpace;
 use super::{Builder, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits, tree_bounds};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
+use wide::{f32x4, i32x4};
 
 /// Most bins per axis (Mitsuba's kd-tree builder uses 128).
 const BINS: usize = 128;
@@ -100,18 +101,27 @@ impl Binner {
     }
 
     /// The bins of a reference's minimum and maximum on the three axes:
-    /// [`Binner::bins_as_floats`] in 4-lane vectors (`Vec3A`, whose max and min pick
-    /// like `clamp` on finite coordinates, and on -0 give a bin 0 all the same), as
-    /// indices.
+    /// [`Binner::bins_as_floats`] in 4-lane vectors (whose max and min pick like `clamp`
+    /// on finite coordinates, and on -0 give a bin 0 all the same). The clamped
+    /// coordinates are not negative, so their floors are truncations: one vector
+    /// conversion gives the indices.
     #[inline]
     fn bins_of(&self, b: &Aabb) -> ([usize; 3], [usize; 3]) {
-        let (lo, scale) = (Vec3A::from(self.lo), Vec3A::from(self.scale));
-        let top = Vec3A::splat(self.bins as f32);
-        let f_min = (Vec3A::from(b.min) - lo) * scale;
-        let f_max = (Vec3A::from(b.max) - lo) * scale;
-        let first = f_min.max(Vec3A::ZERO).min(top - Vec3A::ONE).floor();
-        let last = (f_max.ceil().max(Vec3A::ONE).min(top) - Vec3A::ONE).max(first);
-        (bin_indices(first), bin_indices(last))
+        let lanes = |v: Vec3| f32x4::new([v.x, v.y, v.z, 0.0]);
+        let (lo, scale) = (lanes(self.lo), lanes(self.scale));
+        let top = f32x4::splat(self.bins as f32);
+        let f_min = (lanes(b.min) - lo) * scale;
+        let f_max = (lanes(b.max) - lo) * scale;
+        let first = f_min
+            .max(f32x4::ZERO)
+            .min(top - f32x4::ONE)
+            .fast_trunc_int();
+        let last = f_max.max(f32x4::ONE).min(top).ceil().fast_trunc_int() - i32x4::ONE;
+        let index = |v: i32x4| {
+            let v = v.to_array();
+            [0, 1, 2].map(|axis| v[axis] as usize & (BINS - 1))
+        };
+        (index(first), index(last.max(first)))
     }
 
     /// The bins of the coordinates `min`, `max` on `axis` as whole floats (the
@@ -192,15 +202,6 @@ impl Binner {
             }
         }
     }
-}
-
-/// Whole floats in `0..BINS` as indices: their bits after adding 2^23, in one vector
-/// add (no float-to-int conversion, which Rust makes saturate with extra compares);
-/// masked to the bins so indexing needs no bounds check.
-#[inline]
-fn bin_indices(x: Vec3A) -> [usize; 3] {
-    let bits = (x + Vec3A::splat(8_388_608.0)).to_array().map(f32::to_bits);
-    bits.map(|b| b as usize & (BINS - 1))
 }
 
 /// Whether a reference's first and last bins on one axis are among the two bins
