@@ -317,8 +317,8 @@ impl Builder<'_> {
             self.sweep_refs(cell, &refs, depth, slot, out, space, false);
             return;
         };
-        let [left, right] = self.partition(&refs, &cell, axis, pos);
-        drop(refs);
+        let mut left = refs;
+        let right = self.partition(&mut left, &cell, axis, pos);
         let (left_cell, right_cell) = child_cells(&cell, axis, pos);
         let first = out.inner(slot, axis, pos);
         let big = left.len().max(right.len()) >= self.params.parallel_min_prims as usize;
@@ -472,65 +472,82 @@ impl Builder<'_> {
         best_pos
     }
 
-    /// The references of the children of `cell` split at `pos` on `axis`, in the order
-    /// of `refs`.
-    fn partition(&self, refs: &[Ref], cell: &Aabb, axis: usize, pos: f32) -> [Vec<Ref>; 2] {
+    /// Splits `refs`, a node's references, at `pos` on `axis` in `cell`: `refs` keeps
+    /// the left child's, the right child's are returned, both in the order of `refs`.
+    /// Straddlers are clipped to the cell (perfect splits), or below
+    /// [`CUT_WITHIN_BELOW`] references cut by the plane alone within their bounds.
+    fn partition(&self, refs: &mut Vec<Ref>, cell: &Aabb, axis: usize, pos: f32) -> Vec<Ref> {
         if self.parallel_here(refs.len()) {
-            let parts: Vec<[Vec<Ref>; 2]> = refs
-                .par_chunks(CHUNK)
-                .map(|chunk| self.partition_chunk(chunk, cell, axis, pos, false))
+            let parts: Vec<(usize, Vec<Ref>)> = refs
+                .par_chunks_mut(CHUNK)
+                .map(|chunk| self.partition_in_place(chunk, cell, axis, pos, false))
                 .collect();
-            let [mut left, mut right] =
-                [0, 1].map(|k| Vec::with_capacity(parts.iter().map(|p| p[k].len()).sum::<usize>()));
-            for [l, r] in parts {
-                left.extend_from_slice(&l);
-                right.extend_from_slice(&r);
+            // Each chunk's left references are at its front: close the gaps.
+            let mut n_left = 0;
+            for (k, &(chunk_left, _)) in parts.iter().enumerate() {
+                refs.copy_within(k * CHUNK..k * CHUNK + chunk_left, n_left);
+                n_left += chunk_left;
             }
-            [left, right]
+            refs.truncate(n_left);
+            let mut right = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
+            parts.iter().for_each(|(_, r)| right.extend_from_slice(r));
+            right
         } else {
             let loose = refs.len() < CUT_WITHIN_BELOW;
-            self.partition_chunk(refs, cell, axis, pos, loose)
+            let (n_left, right) = self.partition_in_place(refs, cell, axis, pos, loose);
+            refs.truncate(n_left);
+            right
         }
     }
 
-    /// One chunk of [`Builder::partition`]; straddlers are clipped to the cell (perfect
-    /// splits) or, when `loose`, cut by the plane alone within their bounds.
-    fn partition_chunk(
+    /// [`Builder::partition`] of one run of references: the left child's are written
+    /// over `refs` from the front (each reference read adds at most one on the left,
+    /// so the writes never pass the reads), where the node's own passes have just
+    /// brought them into cache; returns how many, and the right child's.
+    fn partition_in_place(
         &self,
-        refs: &[Ref],
+        refs: &mut [Ref],
         cell: &Aabb,
         axis: usize,
         pos: f32,
         loose: bool,
-    ) -> [Vec<Ref>; 2] {
-        let mut left = Vec::with_capacity(refs.len());
+    ) -> (usize, Vec<Ref>) {
         let mut right = Vec::with_capacity(refs.len());
-        for r in refs {
-            match side(r, axis, pos) {
-                Side::Left => left.push(*r),
-                Side::Right => right.push(*r),
+        let mut n_left = 0;
+        for read in 0..refs.len() {
+            // Copied straight from the array (a copy of `refs[read]` held across the
+            // writes would go through the stack, whose stores and loads of other widths
+            // stall on store forwarding).
+            match side(&refs[read], axis, pos) {
+                Side::Left => {
+                    refs[n_left] = refs[read];
+                    n_left += 1;
+                }
+                Side::Right => right.extend_from_slice(&refs[read..read + 1]),
                 Side::Both => {
+                    let r = refs[read];
                     let [l, rt] = if loose {
                         self.split_within(r.prim, &r.bounds, cell, axis, pos)
                     } else {
                         self.split_prim(r.prim, cell, axis, pos)
                     };
-                    if let Some(bounds) = l {
-                        left.push(Ref {
-                            bounds,
-                            prim: r.prim,
-                        });
-                    }
                     if let Some(bounds) = rt {
                         right.push(Ref {
                             bounds,
                             prim: r.prim,
                         });
                     }
+                    if let Some(bounds) = l {
+                        refs[n_left] = Ref {
+                            bounds,
+                            prim: r.prim,
+                        };
+                        n_left += 1;
+                    }
                 }
             }
         }
-        [left, right]
+        (n_left, right)
     }
 }
 
