@@ -359,22 +359,18 @@ impl Prims {
         let sphere_base = g.triangles.len() as u32;
         let box_base = sphere_base + g.spheres.len() as u32;
         let plane_base = box_base + g.boxes.len() as u32;
+        // The corners are gathered from the mesh once; the records read them in order.
         let ids = 0..g.triangles.len() as u32;
-        let (tris, corners) = if parallel {
-            rayon::join(
-                || {
-                    ids.clone()
-                        .into_par_iter()
-                        .map(|i| TriAccel::of(g, i))
-                        .collect()
-                },
-                || ids.clone().into_par_iter().map(|i| g.triangle(i)).collect(),
-            )
+        let record =
+            |(id, &[a, b, c]): (usize, &[Vec3; 3])| TriAccel::new(a, b, c).with_id(id as u32);
+        let (corners, tris): (Vec<[Vec3; 3]>, Vec<TriAccel>) = if parallel {
+            let corners: Vec<_> = ids.into_par_iter().map(|i| g.triangle(i)).collect();
+            let tris = corners.par_iter().enumerate().map(record).collect();
+            (corners, tris)
         } else {
-            (
-                TriAccel::build_all(g),
-                ids.clone().map(|i| g.triangle(i)).collect(),
-            )
+            let corners: Vec<_> = ids.map(|i| g.triangle(i)).collect();
+            let tris = corners.iter().enumerate().map(record).collect();
+            (corners, tris)
         };
         Prims {
             tris,

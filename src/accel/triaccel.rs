@@ -279,13 +279,6 @@ impl TriAccel {
         self.b_nu == 0.0 && self.b_nv == 0.0 && self.c_nu == 0.0 && self.c_nv == 0.0
     }
 
-    /// Records for every triangle of `geometry`, in id order.
-    pub fn build_all(geometry: &Geometry) -> Vec<TriAccel> {
-        (0..geometry.triangles.len() as u32)
-            .map(|i| TriAccel::of(geometry, i))
-            .collect()
-    }
-
     /// The record of `geometry`'s triangle `tri`, naming it.
     #[inline]
     pub fn of(geometry: &Geometry, tri: u32) -> TriAccel {
