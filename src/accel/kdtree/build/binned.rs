@@ -20,7 +20,7 @@
 //!   outputs are concatenated in order, so the result is the serial one. Large subtrees
 //!   are built in parallel as in the sweep.
 
-use super::small::{SMALL, SmallNode};
+use super::small::SMALL;
 use super::sweep::SweepSpace;
 use super::{Builder, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits, tree_bounds};
 use crate::accel::Prims;
@@ -298,9 +298,9 @@ impl Builder<'_> {
     ) {
         let n = refs.len();
         if n < SMALL {
-            let mut node = SmallNode::new();
-            refs.iter().for_each(|r| node.push(&r.bounds, r.prim));
-            self.build_small(cell, &node, depth, slot, out);
+            self.build_small(cell, depth, slot, out, |node| {
+                refs.iter().for_each(|r| node.push(&r.bounds, r.prim))
+            });
             return;
         }
         if !self.may_split(&cell, n, depth) {

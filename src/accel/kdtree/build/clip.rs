@@ -259,6 +259,7 @@ pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Op
 /// `part` and the child's cell. The result contains the exact one (every point of the
 /// triangle in the child is in it), is a little looser where several faces of the cell
 /// cut the triangle, and costs a fraction of clipping to the cell first.
+#[inline(always)]
 pub fn split_triangle_within(
     tri: [Vec3; 3],
     part: &Aabb,

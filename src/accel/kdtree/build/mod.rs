@@ -511,6 +511,7 @@ impl Builder<'_> {
 
     /// [`Builder::split_prim`] for a straddler whose part in `cell` has bounds `part`:
     /// a triangle is cut by the plane alone ([`split_triangle_within`]).
+    #[inline(always)]
     fn split_within(
         &self,
         prim: u32,

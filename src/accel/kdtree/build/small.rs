@@ -242,24 +242,29 @@ thread_local! {
 }
 
 impl Builder<'_> {
-    /// Builds the subtree of the small node `node` at `depth` in `cell`, its root at
-    /// `slot`.
+    /// Builds the subtree of a small node at `depth` in `cell`, its root at `slot`:
+    /// `fill` puts its references (fewer than [`SMALL`]) into an empty node, one this
+    /// thread reuses rather than a fresh one.
     pub(super) fn build_small(
         &self,
         cell: Aabb,
-        node: &SmallNode,
         depth: u32,
         slot: usize,
         out: &mut Out,
+        fill: impl FnOnce(&mut SmallNode),
     ) {
         let mut kids = KIDS.take();
         // A split happens only above the depth limit: one level of children per level
-        // left.
-        let levels = self.max_depth.saturating_sub(depth) as usize;
+        // left, and one more for the node itself.
+        let levels = self.max_depth.saturating_sub(depth) as usize + 1;
         if kids.len() < levels {
             kids.resize(levels, [SmallNode::new(), SmallNode::new()]);
         }
-        self.build_small_in(cell, node, depth, slot, out, &mut kids);
+        let ([node, _], levels) = kids.split_first_mut().expect("a level for the node");
+        node.clear();
+        fill(node);
+        node.seal();
+        self.build_small_in(cell, node, depth, slot, out, levels);
         KIDS.set(kids);
     }
 

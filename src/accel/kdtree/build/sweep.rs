@@ -228,8 +228,10 @@ impl Builder<'_> {
         levels: &mut [[Lists; 2]],
     ) {
         if self.params.builder == BuilderKind::Fast && (task.prim_count as usize) < SMALL {
-            let node = small_node(&task, &mut scratch.side);
-            self.build_small(task.cell, &node, task.depth, slot, out);
+            let side = &mut scratch.side;
+            self.build_small(task.cell, task.depth, slot, out, |node| {
+                small_node(&task, side, node)
+            });
             return;
         }
         let split = if self.may_split(&task.cell, task.prim_count as usize, task.depth) {
@@ -418,10 +420,10 @@ impl Builder<'_> {
     }
 }
 
-/// The references of `task` as a small node (in the order of their first events on x),
-/// their coordinates read back from the events; `slot` is scratch indexed by primitive.
-fn small_node(task: &Task, slot: &mut [u8]) -> SmallNode {
-    let mut node = SmallNode::new();
+/// Puts the references of `task` into the empty small node `node` (in the order of their
+/// first events on x), their coordinates read back from the events; `slot` is scratch
+/// indexed by primitive.
+fn small_node(task: &Task, slot: &mut [u8], node: &mut SmallNode) {
     for &e in task.events[0] {
         if event_kind(e) != END {
             let prim = event_prim(e);
@@ -439,7 +441,6 @@ fn small_node(task: &Task, slot: &mut [u8]) -> SmallNode {
             }
         }
     }
-    node
 }
 
 /// Writes into `kids` the events of `src` (one axis) whose primitives went left and
