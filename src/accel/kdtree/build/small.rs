@@ -216,14 +216,26 @@ fn count<const C: usize>(
     for i in 0..len {
         let (lo, hi) = (cand[2 * i], cand[2 * i + 1]);
         for j in 0..C * LANES {
-            left[j] += if lo < cand[j] { 1.0 } else { 0.0 };
-            right[j] += if hi > cand[j] { 1.0 } else { 0.0 };
+            left[j] = count_if(left[j], lo < cand[j]);
+            right[j] = count_if(right[j], hi > cand[j]);
         }
         if lo == hi {
             for j in 0..C * LANES {
-                planar[j] += if lo == cand[j] { 1.0 } else { 0.0 };
+                planar[j] = count_if(planar[j], lo == cand[j]);
             }
         }
+    }
+}
+
+/// `count` plus one where `yes`, written for the vector code each ISA does best: with
+/// AVX-512, a select of the incremented count (one masked add); with AVX2, adding the
+/// compare's 0 or 1 (a select there costs a blend: 2.5% of the conference build).
+#[inline(always)]
+fn count_if(count: f32, yes: bool) -> f32 {
+    if cfg!(target_feature = "avx512f") {
+        if yes { count + 1.0 } else { count }
+    } else {
+        count + if yes { 1.0 } else { 0.0 }
     }
 }
 
