@@ -256,7 +256,10 @@ pub(super) fn root_refs(g: &Geometry, prims: &Prims, bounded: u32, parallel: boo
     if parallel {
         (0..bounded).into_par_iter().filter_map(one).collect()
     } else {
-        (0..bounded).filter_map(one).collect()
+        // Sized up front: a filter's collect would grow the array by copies.
+        let mut refs = Vec::with_capacity(bounded as usize);
+        refs.extend((0..bounded).filter_map(one));
+        refs
     }
 }
 
