@@ -238,9 +238,15 @@ pub fn split_triangle(tri: [Vec3; 3], cell: &Aabb, axis: usize, pos: f32) -> [Op
     let whole = triangle_bounds(&tri);
     let scale = whole.min.abs().max(whole.max.abs());
     let (left_cell, right_cell) = child_cells(cell, axis, pos);
-    let parts = Polygon::triangle(tri)
-        .clip_to_cell(&whole, cell)
-        .map_or([Aabb::EMPTY; 2], |p| p.split_bounds(axis, pos, scale));
+    // A triangle inside the cell (most straddlers of large cells) needs no clipping: its
+    // corners split as the polygon's would.
+    let parts = if contains(cell, &whole) {
+        split_corners(&tri.map(Vec3A::from), axis, pos, scale.into()).map(Box3::to_aabb)
+    } else {
+        Polygon::triangle(tri)
+            .clip_to_cell(&whole, cell)
+            .map_or([Aabb::EMPTY; 2], |p| p.split_bounds(axis, pos, scale))
+    };
     let mut bounds = [None; 2];
     for ((b, part), child) in bounds.iter_mut().zip(&parts).zip([left_cell, right_cell]) {
         *b = if contains(&child, &whole) {
@@ -438,6 +444,45 @@ mod tests {
         // Touching the cell at one corner still counts.
         let corner = Aabb::new(Vec3::new(4.0, -1.0, -1.0), Vec3::new(5.0, 0.0, 1.0));
         assert!(clip_triangle(tri, &corner).is_some());
+    }
+
+    #[test]
+    fn triangles_inside_the_cell_split_as_their_polygons() {
+        let mut rng = crate::scene::generate::Rng::new(8);
+        let mut checked = 0;
+        for k in 0..20_000 {
+            let mut tri = [0; 3].map(|_| rng.point(Vec3::splat(-1.0), Vec3::ONE));
+            let axis = (rng.next_u64() % 3) as usize;
+            // Some corners exactly on the plane, some triangles flat in it.
+            let pos = rng.range(-1.0, 1.0);
+            if k % 5 == 0 {
+                tri[k % 3][axis] = pos;
+            }
+            if k % 17 == 0 {
+                tri.iter_mut().for_each(|p| p[axis] = pos);
+            }
+            let whole = triangle_bounds(&tri);
+            // The cell holds the triangle, sometimes touching it.
+            let margin = if k % 3 == 0 { 0.0 } else { 0.5 };
+            let cell = Aabb::new(whole.min - margin, whole.max + margin);
+            if !(pos > cell.min[axis] && pos < cell.max[axis]) {
+                continue;
+            }
+            checked += 1;
+            let scale = whole.min.abs().max(whole.max.abs());
+            let polygon = Polygon::triangle(tri).split_bounds(axis, pos, scale);
+            let corners = split_corners(&tri.map(Vec3A::from), axis, pos, scale.into());
+            for (p, c) in polygon.iter().zip(corners) {
+                let bits = |b: &Aabb| {
+                    (
+                        b.min.to_array().map(f32::to_bits),
+                        b.max.to_array().map(f32::to_bits),
+                    )
+                };
+                assert_eq!(bits(p), bits(&c.to_aabb()), "{tri:?} {axis} {pos}");
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
     }
 
     #[test]
