@@ -130,10 +130,8 @@ impl Binner {
     #[inline]
     fn bins_as_floats(&self, min: f32, max: f32, axis: usize) -> (f32, f32) {
         let f_min = (min - self.lo[axis]) * self.scale[axis];
-        let f_max = (max - self.lo[axis]) * self.scale[axis];
-        let top = self.bins as f32;
-        let first = f_min.clamp(0.0, top - 1.0).floor();
-        let last = f_max.ceil().clamp(1.0, top) - 1.0;
+        let first = f_min.clamp(0.0, self.bins as f32 - 1.0).floor();
+        let last = self.last_bin(max, axis);
         (first, if last > first { last } else { first })
     }
 
