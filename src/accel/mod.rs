@@ -392,6 +392,13 @@ impl Prims {
         self.corners = order.iter().map(|&s| self.corners[s as usize]).collect();
     }
 
+    /// True when every bounded primitive is a triangle (no spheres or boxes): a leaf's
+    /// slots then need no check before the triangle-only lane kernels.
+    #[inline(always)]
+    pub fn triangles_only(&self) -> bool {
+        self.sphere_base == self.plane_base
+    }
+
     /// The primitive id of the record in `slot` (see [`Prims`]).
     #[inline(always)]
     pub fn id(&self, slot: u32) -> u32 {

@@ -217,4 +217,24 @@ mod tests {
     fn sixteen_lanes_match_scalar() {
         lanes_match_scalar::<W16>();
     }
+
+    /// [`Prims::triangles_only`] (which lets the lane walks skip checking a leaf's
+    /// slots) holds for triangles and planes, and not once a sphere or a box is added.
+    #[test]
+    fn triangles_only_means_no_sphere_or_box() {
+        let mut g = geometry();
+        g.planes.push(crate::scene::Plane {
+            normal: Vec3::Y,
+            offset: 0.0,
+        });
+        assert!(Prims::new(&g).triangles_only());
+        let mut with_sphere = g.clone();
+        with_sphere.spheres.push(crate::scene::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        });
+        assert!(!Prims::new(&with_sphere).triangles_only());
+        g.boxes.push(crate::scene::Aabb::new(Vec3::ZERO, Vec3::ONE));
+        assert!(!Prims::new(&g).triangles_only());
+    }
 }
