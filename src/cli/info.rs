@@ -54,6 +54,8 @@ struct Sah {
     empty_bonus: f32,
     /// [`BuildParams::min_saving`] (the fast builder's; the exact one ignores it).
     min_saving: f32,
+    /// [`BuildParams::empty_cut`].
+    empty_cut: f32,
 }
 
 #[derive(Serialize, Debug)]
@@ -194,8 +196,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.mean_prims_per_leaf, s.refs_per_prim
     );
     println!(
-        "SAH cost         {:.2} (K_T {}, K_I {})",
-        s.sah_cost, params.traversal_cost, params.intersection_cost
+        "SAH cost         {:.2} (K_T {}, K_I {}, empty margins cut at {})",
+        s.sah_cost, params.traversal_cost, params.intersection_cost, params.empty_cut
     );
     let total = s.node_bytes + s.leaf_bytes + s.index_bytes + s.triaccel_bytes;
     let mut memory = std::collections::BTreeMap::new();
@@ -282,6 +284,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 intersection_cost: params.intersection_cost,
                 empty_bonus: params.empty_bonus,
                 min_saving: params.min_saving,
+                empty_cut: params.empty_cut,
             },
             memory,
             primary,

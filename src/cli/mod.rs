@@ -87,6 +87,10 @@ pub struct TreeArgs {
     /// split wherever the SAH gains at all).
     #[arg(long, default_value_t = BuildParams::default().min_saving)]
     pub min_saving: f32,
+    /// Cut a leaf's empty margins off with splits at its primitives' bounds while a cut
+    /// keeps at most 1 - this share of the cell's area (0: no cuts).
+    #[arg(long, default_value_t = BuildParams::default().empty_cut)]
+    pub empty_cut: f32,
 }
 
 fn parse_builder(s: &str) -> Result<BuilderKind, String> {
@@ -110,6 +114,9 @@ impl TreeArgs {
         if !ok(self.min_saving) {
             return Err(BadInput("--min-saving must be finite and >= 0".into()).into());
         }
+        if !(0.0..1.0).contains(&self.empty_cut) {
+            return Err(BadInput("--empty-cut must be in [0, 1)".into()).into());
+        }
         Ok(BuildParams {
             traversal_cost: self.traversal_cost,
             intersection_cost: self.intersection_cost,
@@ -117,6 +124,7 @@ impl TreeArgs {
             builder: self.builder,
             sweep_below: self.sweep_below,
             min_saving: self.min_saving,
+            empty_cut: self.empty_cut,
             ..BuildParams::default()
         })
     }

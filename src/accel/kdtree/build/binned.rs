@@ -305,7 +305,8 @@ impl Builder<'_> {
             return;
         }
         if !self.may_split(&cell, n, depth) {
-            out.leaf(slot, refs.iter().map(|r| r.prim));
+            let bounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.bounds));
+            self.leaf(out, slot, cell, depth, bounds, refs.iter().map(|r| r.prim));
             return;
         }
         let plane = if n >= self.params.sweep_below as usize {

@@ -66,6 +66,18 @@ impl SmallNode {
         }
     }
 
+    /// The union of the node's references' bounds.
+    fn union(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for axis in 0..3 {
+            for i in 0..self.len {
+                b.min[axis] = b.min[axis].min(self.lim[axis][2 * i]);
+                b.max[axis] = b.max[axis].max(self.lim[axis][2 * i + 1]);
+            }
+        }
+        b
+    }
+
     /// Appends a reference.
     #[inline]
     pub(super) fn push(&mut self, bounds: &Aabb, prim: u32) {
@@ -301,7 +313,15 @@ impl Builder<'_> {
             planar_left,
         }) = plane
         else {
-            out.leaf(slot, node.prim[..node.len].iter().copied());
+            let bounds = node.union();
+            self.leaf(
+                out,
+                slot,
+                cell,
+                depth,
+                bounds,
+                node.prim[..node.len].iter().copied(),
+            );
             return;
         };
         let (kids, deeper) = levels

@@ -287,8 +287,21 @@ impl Builder<'_> {
 
     /// A leaf holding the node's primitives in ascending id order.
     fn make_leaf(&self, task: &Task, slot: usize, out: &mut Out) {
-        out.leaf(
+        // Each axis's events are in order of position: its first and last are the
+        // bounds of the node's references.
+        let mut bounds = Aabb::EMPTY;
+        for (axis, list) in task.events.iter().enumerate() {
+            if let (Some(&lo), Some(&hi)) = (list.first(), list.last()) {
+                bounds.min[axis] = event_pos(lo);
+                bounds.max[axis] = event_pos(hi);
+            }
+        }
+        self.leaf(
+            out,
             slot,
+            task.cell,
+            task.depth,
+            bounds,
             task.events[0]
                 .iter()
                 .filter(|&&e| event_kind(e) != END)
