@@ -22,7 +22,9 @@
 
 use super::small::SMALL;
 use super::sweep::SweepSpace;
-use super::{Builder, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits, tree_bounds};
+use super::{
+    Builder, Out, PlaneCost, Ref, child_cells, cut_bounds, from_order_bits, order_bits, tree_bounds,
+};
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
 use glam::Vec3;
@@ -305,7 +307,9 @@ impl Builder<'_> {
             return;
         }
         if !self.may_split(&cell, n, depth) {
-            let bounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.bounds));
+            let bounds = cut_bounds(n, || {
+                refs.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.bounds))
+            });
             self.leaf(out, slot, cell, depth, bounds, refs.iter().map(|r| r.prim));
             return;
         }

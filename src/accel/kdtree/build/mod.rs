@@ -118,13 +118,14 @@ pub struct BuildParams {
     /// nodes, and a third of its build, at the same cost and ray rates (perf/kdtree.md,
     /// "Splits that save nothing"). The exact builder ignores it; 0 turns it off.
     pub min_saving: f32,
-    /// A leaf's empty margins are cut off by a chain of splits at its primitives' bounds
-    /// (largest margin first) while a cut leaves the held side at most `1 - empty_cut`
-    /// of the cell's area; 0 turns it off. The SAH never pays a split to trim a leaf of
-    /// one or two triangles (K_T > K_I), yet a leaf visit costs a lane walk about as
+    /// A small leaf's empty margins are cut off by a chain of splits at its primitives'
+    /// bounds (largest margin first) while a cut leaves the held side at most `1 -
+    /// empty_cut` of the cell's area; 0 turns it off. The SAH never pays a split to trim
+    /// a leaf of one triangle (K_T > K_I), yet a leaf visit costs a lane walk about as
     /// much as ten inner steps, and a cut's empty side costs nothing: the default 0.5
-    /// takes the conference room's leaf visits per diffuse ray from 2.95 to 1.98 and its
-    /// `stream` rate up 1.14x for 9% more nodes (perf/stream.md, "Empty margins cut").
+    /// takes the conference room's leaf visits per diffuse ray from 2.95 to about 2 and
+    /// its `stream` rate up 1.14x for 3% more nodes (perf/stream.md, "Empty margins
+    /// cut"), on leaves of at most two primitives.
     pub empty_cut: f32,
 }
 
@@ -142,6 +143,25 @@ impl Default for BuildParams {
             min_saving: 1e-5,
             empty_cut: 0.5,
         }
+    }
+}
+
+/// Leaves of at most this many primitives get their empty margins cut
+/// ([`BuildParams::empty_cut`]). With the default costs the SAH itself trims a margin off
+/// a leaf of `n` where the held side keeps under `(K_I n / (1 - bonus) - K_T) / (K_I n)`
+/// of the area: never for one primitive, under 50% for two, 75% for three; the two
+/// kind are here for the leaves that `min_saving` made without pricing. Cutting larger
+/// leaves too added 2% more nodes for no gain on the conference room's diffuse rays and
+/// cost Sponza's diffuse stream about 3% (perf/stream.md, "Empty margins cut").
+const EMPTY_CUT_MAX_PRIMS: usize = 2;
+
+/// The bounds that a leaf of `n` primitives cuts its empty margins down to: those of
+/// its primitives (`bounds()`) when `n` is at most [`EMPTY_CUT_MAX_PRIMS`], else none.
+fn cut_bounds(n: usize, bounds: impl FnOnce() -> Aabb) -> Aabb {
+    if n <= EMPTY_CUT_MAX_PRIMS {
+        bounds()
+    } else {
+        Aabb::EMPTY
     }
 }
 
@@ -473,9 +493,9 @@ fn leaf_lines(
 }
 
 impl Builder<'_> {
-    /// Makes the node at `slot` (in `cell`, at `depth`) a leaf of `prims`, whose
-    /// bounds inside the cell are `bounds`, first cutting off the cell's empty margins
-    /// ([`BuildParams::empty_cut`]).
+    /// Makes the node at `slot` (in `cell`, at `depth`) a leaf of `prims`, first cutting
+    /// off the cell's empty margins outside `bounds` ([`BuildParams::empty_cut`]; what
+    /// [`cut_bounds`] gives).
     fn leaf(
         &self,
         out: &mut Out,

@@ -16,7 +16,7 @@
 //! bounds in the cell ([`Builder::split_within`]): a little looser than clipping it to
 //! the cell first, and cheaper.
 
-use super::{Builder, Out, PlaneCost, child_cells, from_order_bits, order_bits};
+use super::{Builder, Out, PlaneCost, child_cells, cut_bounds, from_order_bits, order_bits};
 use crate::scene::Aabb;
 
 /// Most references a small node holds.
@@ -313,7 +313,7 @@ impl Builder<'_> {
             planar_left,
         }) = plane
         else {
-            let bounds = node.union();
+            let bounds = cut_bounds(node.len, || node.union());
             self.leaf(
                 out,
                 slot,

@@ -18,7 +18,8 @@
 
 use super::small::{SMALL, SmallNode};
 use super::{
-    Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells, from_order_bits, order_bits,
+    Builder, BuilderKind, MAX_DEPTH, Out, PlaneCost, Ref, child_cells, cut_bounds, from_order_bits,
+    order_bits,
 };
 use crate::accel::kdtree::node::MAX_INDEX;
 use crate::scene::Aabb;
@@ -289,13 +290,16 @@ impl Builder<'_> {
     fn make_leaf(&self, task: &Task, slot: usize, out: &mut Out) {
         // Each axis's events are in order of position: its first and last are the
         // bounds of the node's references.
-        let mut bounds = Aabb::EMPTY;
-        for (axis, list) in task.events.iter().enumerate() {
-            if let (Some(&lo), Some(&hi)) = (list.first(), list.last()) {
-                bounds.min[axis] = event_pos(lo);
-                bounds.max[axis] = event_pos(hi);
+        let bounds = cut_bounds(task.prim_count as usize, || {
+            let mut b = Aabb::EMPTY;
+            for (axis, list) in task.events.iter().enumerate() {
+                if let (Some(&lo), Some(&hi)) = (list.first(), list.last()) {
+                    b.min[axis] = event_pos(lo);
+                    b.max[axis] = event_pos(hi);
+                }
             }
-        }
+            b
+        });
         self.leaf(
             out,
             slot,
