@@ -87,8 +87,8 @@ pub struct TreeArgs {
     /// split wherever the SAH gains at all).
     #[arg(long, default_value_t = BuildParams::default().min_saving)]
     pub min_saving: f32,
-    /// Cut a leaf's empty margins off with splits at its primitives' bounds while a cut
-    /// keeps at most 1 - this share of the cell's area (0: no cuts).
+    /// Cut the empty margins of a leaf of one or two primitives off with splits at their
+    /// bounds while a cut keeps at most 1 - this share of the cell's area (0: no cuts).
     #[arg(long, default_value_t = BuildParams::default().empty_cut)]
     pub empty_cut: f32,
 }

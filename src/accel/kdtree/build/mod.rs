@@ -699,10 +699,12 @@ mod tests {
     #[test]
     fn empty_cuts_shrink_a_lone_triangle_to_its_bounds() {
         let mut g = Geometry::default();
+        // Off the room's centre: a cut from the middle of a cell only halves one extent,
+        // too little for one cut at the shipped threshold.
         let small = [
-            Vec3::new(0.1, 0.2, 0.3),
-            Vec3::new(0.2, 0.25, 0.3),
-            Vec3::new(0.15, 0.3, 0.35),
+            Vec3::new(6.1, 6.2, 6.3),
+            Vec3::new(6.2, 6.25, 6.3),
+            Vec3::new(6.15, 6.3, 6.35),
         ];
         let mut push = |corners: [Vec3; 3]| {
             let first = g.vertices.len() as u32;
@@ -747,7 +749,8 @@ mod tests {
             (tree.nodes().len(), holding[0].1)
         };
         let (plain_nodes, plain) = lone_cell(0.0);
-        let cut = 0.35;
+        let cut = BuildParams::default().empty_cut;
+        assert!(cut > 0.0, "the shipped build cuts");
         let (cut_nodes, tight) = lone_cell(cut);
         assert!(
             cut_nodes > plain_nodes,
