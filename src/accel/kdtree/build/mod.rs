@@ -149,8 +149,8 @@ impl Default for BuildParams {
 /// Leaves of at most this many primitives get their empty margins cut
 /// ([`BuildParams::empty_cut`]). With the default costs the SAH itself trims a margin off
 /// a leaf of `n` where the held side keeps under `(K_I n / (1 - bonus) - K_T) / (K_I n)`
-/// of the area: never for one primitive, under 50% for two, 75% for three; the two
-/// kind are here for the leaves that `min_saving` made without pricing. Cutting larger
+/// of the area: never for one primitive, under 50% for two, 75% for three. Leaves of
+/// two are included for those that `min_saving` ended without pricing any plane. Cutting larger
 /// leaves too added 2% more nodes for no gain on the conference room's diffuse rays and
 /// cost Sponza's diffuse stream about 3% (perf/stream.md, "Empty margins cut").
 const EMPTY_CUT_MAX_PRIMS: usize = 2;
@@ -505,52 +505,45 @@ impl Builder<'_> {
         bounds: Aabb,
         prims: impl Iterator<Item = u32>,
     ) {
+        // The cuts lie on the bounds' faces, so the bounds stay inside every cell below.
+        let bounds = intersect_boxes(&bounds, &cell);
         while depth < MAX_DEPTH
             && let Some((axis, pos, above)) = self.empty_cut(&cell, &bounds)
         {
             let first = out.inner(slot, axis, pos);
+            let (left, right) = child_cells(&cell, axis, pos);
             let (empty, full) = if above {
                 (first, first + 1)
             } else {
                 (first + 1, first)
             };
             out.leaf(empty, std::iter::empty());
-            if above {
-                cell.min[axis] = pos;
-            } else {
-                cell.max[axis] = pos;
-            }
+            cell = if above { right } else { left };
             slot = full;
             depth += 1;
         }
         out.leaf(slot, prims);
     }
 
-    /// The plane that cuts off the largest empty margin of `cell` outside `bounds` (the
-    /// bounds of what the cell holds), as (axis, position, whether the held side is
-    /// above it), when that leaves the held side at most `1 - empty_cut` of the cell's
-    /// area ([`BuildParams::empty_cut`]).
-    fn empty_cut(&self, cell: &Aabb, bounds: &Aabb) -> Option<(usize, f32, bool)> {
-        if self.params.empty_cut <= 0.0 {
-            return None;
-        }
-        let b = intersect_boxes(bounds, cell);
-        if b.is_empty() {
+    /// The plane that cuts off the largest empty margin of `cell` outside `b` (the
+    /// bounds of what the cell holds, inside it), as (axis, position, whether the held
+    /// side is above it), when that leaves the held side at most `1 - empty_cut` of the
+    /// cell's area ([`BuildParams::empty_cut`]).
+    fn empty_cut(&self, cell: &Aabb, b: &Aabb) -> Option<(usize, f32, bool)> {
+        if self.params.empty_cut <= 0.0 || b.is_empty() {
             return None;
         }
         let area = cell.surface_area();
         let mut best: Option<(f32, usize, f32, bool)> = None;
         for axis in 0..3 {
             for (pos, above) in [(b.min[axis], true), (b.max[axis], false)] {
-                let mut c = *cell;
-                let inside = if above {
-                    c.min[axis] = pos;
-                    pos > cell.min[axis]
+                let (left, right) = child_cells(cell, axis, pos);
+                let (held, inside) = if above {
+                    (right, pos > cell.min[axis])
                 } else {
-                    c.max[axis] = pos;
-                    pos < cell.max[axis]
+                    (left, pos < cell.max[axis])
                 };
-                let ratio = c.surface_area() / area;
+                let ratio = held.surface_area() / area;
                 if inside
                     && ratio <= 1.0 - self.params.empty_cut
                     && best.is_none_or(|(r, ..)| ratio < r)
@@ -650,28 +643,19 @@ mod tests {
         tree.validate().expect("valid tree");
         // The leaves name slots: the triangle in each slot a leaf names overlaps the
         // leaf's cell.
-        let mut cells = vec![(0u32, tree.bounds)];
-        let mut leaves = 0;
-        while let Some((i, cell)) = cells.pop() {
-            let node = &tree.nodes()[i as usize];
-            if node.is_leaf() {
-                for &slot in tree.leaf_prims(node) {
-                    let b = p.corners[slot as usize]
-                        .iter()
-                        .fold(Aabb::EMPTY, |b, &c| b.union(&Aabb { min: c, max: c }));
-                    assert!(
-                        b.min.cmple(cell.max).all() && b.max.cmpge(cell.min).all(),
-                        "leaf {i}: slot {slot} lies outside its cell"
-                    );
-                }
-                leaves += 1;
-                continue;
+        let leaves = leaf_cells(&tree);
+        for (i, (node, cell)) in leaves.iter().enumerate() {
+            for &slot in tree.leaf_prims(node) {
+                let b = p.corners[slot as usize]
+                    .iter()
+                    .fold(Aabb::EMPTY, |b, &c| b.union(&Aabb { min: c, max: c }));
+                assert!(
+                    b.min.cmple(cell.max).all() && b.max.cmpge(cell.min).all(),
+                    "leaf {i}: slot {slot} lies outside its cell"
+                );
             }
-            let (left, right) = child_cells(&cell, node.axis(), node.split);
-            cells.push((node.children(), left));
-            cells.push((node.children() + 1, right));
         }
-        assert!(leaves > 1000, "{leaves} leaves");
+        assert!(leaves.len() > 1000, "{} leaves", leaves.len());
     }
 
     /// Every leaf with its cell, found by walking the tree from the root.
