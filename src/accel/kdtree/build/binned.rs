@@ -23,7 +23,8 @@
 use super::small::SMALL;
 use super::sweep::SweepSpace;
 use super::{
-    Builder, Out, PlaneCost, Ref, child_cells, cut_bounds, from_order_bits, order_bits, tree_bounds,
+    Builder, Out, PlaneCost, Ref, child_cells, cut_bounds, from_order_bits, order_bits,
+    refs_bounds, tree_bounds,
 };
 use crate::accel::Prims;
 use crate::scene::{Aabb, Geometry};
@@ -307,9 +308,7 @@ impl Builder<'_> {
             return;
         }
         if !self.may_split(&cell, n, depth) {
-            let bounds = cut_bounds(n, || {
-                refs.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.bounds))
-            });
+            let bounds = cut_bounds(n, || refs_bounds(&refs));
             self.leaf(out, slot, cell, depth, bounds, refs.iter().map(|r| r.prim));
             return;
         }

@@ -46,6 +46,11 @@ pub(super) struct Ref {
     pub prim: u32,
 }
 
+/// The union of `refs`' bounds.
+fn refs_bounds(refs: &[Ref]) -> Aabb {
+    refs.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.bounds))
+}
+
 /// Which builder makes the tree.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuilderKind {
@@ -390,7 +395,7 @@ impl KdTree {
         let bounded = g.bounded_count();
         assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
         let refs = binned::root_refs(g, &prims, bounded, params.parallel);
-        let cell = refs.iter().fold(Aabb::EMPTY, |c, r| c.union(&r.bounds));
+        let cell = refs_bounds(&refs);
         let prim_count = refs.len() as u32;
         let max_depth = params
             .max_depth

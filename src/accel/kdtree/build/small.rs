@@ -68,14 +68,7 @@ impl SmallNode {
 
     /// The union of the node's references' bounds.
     fn union(&self) -> Aabb {
-        let mut b = Aabb::EMPTY;
-        for axis in 0..3 {
-            for i in 0..self.len {
-                b.min[axis] = b.min[axis].min(self.lim[axis][2 * i]);
-                b.max[axis] = b.max[axis].max(self.lim[axis][2 * i + 1]);
-            }
-        }
-        b
+        (0..self.len).fold(Aabb::EMPTY, |b, i| b.union(&self.bounds(i)))
     }
 
     /// Appends a reference.
