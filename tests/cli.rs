@@ -422,6 +422,97 @@ fn bench_cost_flags_change_the_tree_not_the_hits() {
 }
 
 #[test]
+fn bench_times_a_second_tree_pass_by_pass() {
+    let dir = scratch("compare");
+    let json = dir.join("compare.json");
+    let out = raypack(&[
+        "bench",
+        "spd:tetra:3",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--repeat",
+        "3",
+        "--threads",
+        "1",
+        "--modes",
+        "scalar,stream",
+        "--sets",
+        "primary,diffuse",
+        "--compare-tree",
+        "--empty-cut 0 --traversal-cost 5",
+        "--json",
+        s(&json),
+    ]);
+    check(&out, "raypack bench");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("second tree (--compare-tree"), "{stdout}");
+    assert_eq!(
+        stdout
+            .matches("the first (median of paired passes)")
+            .count(),
+        4,
+        "{stdout}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["compare_tree"], "--empty-cut 0 --traversal-cost 5");
+    assert!(v["second_build_seconds"].as_f64().unwrap() >= 0.0);
+    let rows = v["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 4);
+    for r in rows {
+        let second = &r["second_tree"];
+        let (lo, med, hi) = (
+            second["mrays_min"].as_f64().unwrap(),
+            second["mrays_median"].as_f64().unwrap(),
+            second["mrays_max"].as_f64().unwrap(),
+        );
+        assert!(0.0 < lo && lo <= med && med <= hi, "{r}");
+        assert!(second["ratio_median"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    // Without the flag the rows and the report carry no second tree.
+    let plain = dir.join("plain.json");
+    let out = raypack(&[
+        "bench",
+        "spd:tetra:1",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+        "--sets",
+        "primary",
+        "--json",
+        s(&plain),
+    ]);
+    check(&out, "raypack bench");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&plain).unwrap()).unwrap();
+    assert!(v.get("compare_tree").is_none(), "{v}");
+    assert!(v["results"][0].get("second_tree").is_none(), "{v}");
+    // Bad flags are reported before any work, naming the flag.
+    for (flags, named) in [
+        ("--bogus 1", "--bogus"),
+        ("--empty-cut 2", "--empty-cut"),
+        ("--intersection-cost", "--intersection-cost"),
+    ] {
+        let out = raypack(&["bench", "spd:tetra:1", "--compare-tree", flags]);
+        assert_eq!(out.status.code(), Some(2), "{flags}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--compare-tree") && err.contains(named),
+            "{flags}: {err}"
+        );
+        assert!(out.stdout.is_empty(), "{flags}: work started");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn spd_scenes_export_to_obj() {
     let dir = scratch("obj");
     let obj = dir.join("rings.obj");

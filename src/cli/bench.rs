@@ -84,6 +84,38 @@ pub struct Args {
     pub json: Option<PathBuf>,
     #[command(flatten)]
     pub tree: super::TreeArgs,
+    /// Time a second tree against the first, built with these tree flags (e.g.
+    /// "--empty-cut 0.5 --intersection-cost 60"; flags not given take their defaults).
+    /// Each measurement alternates the two trees pass by pass (A B B A ...), so both meet
+    /// the same drift of a shared machine, and a row for the second tree follows with the
+    /// median ratio of its passes to the first tree's neighbouring ones.
+    #[arg(long, value_name = "FLAGS", allow_hyphen_values = true)]
+    pub compare_tree: Option<String>,
+}
+
+/// The flags of `--compare-tree`, read as `bench` reads its own tree flags.
+#[derive(clap::Parser, Debug)]
+#[command(no_binary_name = true)]
+struct CompareTree {
+    #[command(flatten)]
+    tree: super::TreeArgs,
+}
+
+/// The build parameters that `--compare-tree FLAGS` names.
+fn compare_params(flags: &str) -> anyhow::Result<BuildParams> {
+    use clap::Parser;
+    let parsed = CompareTree::try_parse_from(flags.split_whitespace()).map_err(|e| {
+        let message = e.to_string();
+        let first = message.lines().next().unwrap_or_default();
+        BadInput(format!(
+            "--compare-tree \"{flags}\": {}",
+            first.trim_start_matches("error: ")
+        ))
+    })?;
+    parsed
+        .tree
+        .params()
+        .map_err(|e| BadInput(format!("--compare-tree \"{flags}\": {e}")).into())
 }
 
 /// `--modes`: a comma-separated list, `all` standing for every mode.
@@ -111,6 +143,20 @@ pub struct Row {
     pub mrays_min: f64,
     pub mrays_max: f64,
     pub checksum: String,
+    /// The second tree's rates (`--compare-tree`), from passes alternating with these.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub second_tree: Option<SecondTree>,
+}
+
+/// The second tree's side of a row (`--compare-tree`).
+#[derive(Serialize, Debug)]
+pub struct SecondTree {
+    pub mrays_median: f64,
+    pub mrays_min: f64,
+    pub mrays_max: f64,
+    /// Median over the passes of the second tree's rate over the first tree's in the
+    /// neighbouring pass.
+    pub ratio_median: f64,
 }
 
 #[derive(Serialize, Debug)]
@@ -134,6 +180,12 @@ pub struct Report {
     /// packet path traces them as one group per sign octant), and all packets.
     pub split_packets:
         std::collections::BTreeMap<String, std::collections::BTreeMap<String, [usize; 2]>>,
+    /// The flags of `--compare-tree`, when a second tree was timed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compare_tree: Option<String>,
+    /// The second tree's build time in seconds (`--compare-tree`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub second_build_seconds: Option<f64>,
     /// 1-minute load average before and after the timed passes.
     pub load_average: [f64; 2],
     pub results: Vec<Row>,
@@ -267,27 +319,38 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// One measurement: a warm-up pass, then `repeat` timed passes; rates in Mrays/s.
+/// One measurement of each of `accels` (one tree, or two with `--compare-tree`): a
+/// warm-up pass each, then `repeat` timed passes each, the trees taking turns in the
+/// order A B, B A, A B ... so that pass `j` of each lies next to pass `j` of the other;
+/// rates in Mrays/s, in pass order.
 pub fn measure<A: Accel>(
     pool: &rayon::ThreadPool,
-    accel: &A,
+    accels: &[&A],
     set: &RaySet,
     mode: Mode,
     query: Query,
     repeat: usize,
-) -> (Vec<f64>, Checksum) {
-    let pass = || pool.install(|| checksum_set(accel, set, mode, query));
-    let checksum = pass();
-    let rates = (0..repeat)
-        .map(|_| {
+) -> Vec<(Vec<f64>, Checksum)> {
+    let pass = |accel: &A| pool.install(|| checksum_set(accel, set, mode, query));
+    let mut out: Vec<(Vec<f64>, Checksum)> = accels.iter().map(|a| (Vec::new(), pass(a))).collect();
+    for j in 0..repeat {
+        for k in 0..accels.len() {
+            let k = if j % 2 == 0 { k } else { accels.len() - 1 - k };
             let start = Instant::now();
-            let c = std::hint::black_box(pass());
+            let c = std::hint::black_box(pass(accels[k]));
             let seconds = start.elapsed().as_secs_f64();
-            assert_eq!(c, checksum, "a pass gave a different answer");
-            set.len() as f64 / seconds / 1e6
-        })
-        .collect();
-    (rates, checksum)
+            assert_eq!(c, out[k].1, "a pass gave a different answer");
+            out[k].0.push(set.len() as f64 / seconds / 1e6);
+        }
+    }
+    out
+}
+
+/// Fastest, slowest and median of `rates`.
+fn spread(rates: &[f64]) -> (f64, f64, f64) {
+    let lo = rates.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = rates.iter().copied().fold(0.0, f64::max);
+    (lo, hi, median(&mut rates.to_vec()))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -316,6 +379,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     check_size_flags(args.width, args.height)?;
     let params = args.tree.params()?;
+    let second_params = args
+        .compare_tree
+        .as_deref()
+        .map(compare_params)
+        .transpose()?;
 
     let scene = load_scene(&args.scene)?;
     let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height, &params)?;
@@ -341,6 +409,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.tree.empty_bonus,
         build_seconds
     );
+    let second = second_params.map(|p| build_accel(&scene.geometry, &p));
+    if let (Some((tree, seconds)), Some(flags)) = (&second, &args.compare_tree) {
+        println!(
+            "second tree (--compare-tree \"{flags}\"): {} nodes, built in {seconds:.3} s; the first has {} nodes",
+            tree.nodes().len(),
+            accel.nodes().len()
+        );
+    }
+    let trees: Vec<&BenchAccel> = std::iter::once(&accel)
+        .chain(second.as_ref().map(|(tree, _)| tree))
+        .collect();
     println!(
         "machine: {}, {} cores, {}",
         machine.cpu, machine.cores, machine.simd
@@ -419,7 +498,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             for &mode in &args.modes.0 {
                 let tiles_before = pool_tile_counts(pool);
                 let work_before = pool_traversal_counts(pool);
-                let (mut rates, checksum) = measure(pool, &accel, set, mode, query, args.repeat);
+                let results = measure(pool, &trees, set, mode, query, args.repeat);
+                let (rates, checksum) = &results[0];
+                let checksum = *checksum;
                 if stats::ENABLED {
                     let w = pool_traversal_counts(pool).since(work_before);
                     // One warm-up pass and `repeat` timed ones.
@@ -444,11 +525,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 if !agrees {
                     disagreements.push(format!("{name} {mode} {t} threads"));
                 }
-                let (lo, hi) = (
-                    rates.iter().copied().fold(f64::INFINITY, f64::min),
-                    rates.iter().copied().fold(0.0, f64::max),
-                );
-                let med = median(&mut rates);
+                let (lo, hi, med) = spread(rates);
                 println!(
                     "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
                     name,
@@ -474,6 +551,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     mrays_min: lo,
                     mrays_max: hi,
                     checksum: checksum.to_string(),
+                    second_tree: results.get(1).map(|(second, c)| {
+                        if *c != checksum {
+                            disagreements.push(format!("{name} {mode} {t} threads, second tree"));
+                        }
+                        let (lo, hi, med) = spread(second);
+                        let mut ratios: Vec<f64> =
+                            second.iter().zip(rates).map(|(b, a)| b / a).collect();
+                        let ratio = median(&mut ratios);
+                        println!(
+                            "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  second tree: {ratio:.3}x the first (median of paired passes){}",
+                            "",
+                            "",
+                            "",
+                            "",
+                            "",
+                            "",
+                            med,
+                            lo,
+                            hi,
+                            if *c == checksum { "" } else { ", checksum differs" }
+                        );
+                        SecondTree {
+                            mrays_median: med,
+                            mrays_min: lo,
+                            mrays_max: hi,
+                            ratio_median: ratio,
+                        }
+                    }),
                 });
             }
         }
@@ -517,6 +622,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             light: sets.light.to_array(),
             light_source: sets.light_source.describe().to_string(),
             split_packets,
+            compare_tree: args.compare_tree.clone(),
+            second_build_seconds: second.as_ref().map(|(_, seconds)| *seconds),
             load_average: [load_before, load_after],
             results: rows,
         };
