@@ -104,18 +104,16 @@ struct CompareTree {
 /// The build parameters that `--compare-tree FLAGS` names.
 fn compare_params(flags: &str) -> anyhow::Result<BuildParams> {
     use clap::Parser;
+    let bad = |why: &str| BadInput(format!("--compare-tree \"{flags}\": {why}"));
     let parsed = CompareTree::try_parse_from(flags.split_whitespace()).map_err(|e| {
         let message = e.to_string();
-        let first = message.lines().next().unwrap_or_default();
-        BadInput(format!(
-            "--compare-tree \"{flags}\": {}",
-            first.trim_start_matches("error: ")
-        ))
+        bad(message
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .trim_start_matches("error: "))
     })?;
-    parsed
-        .tree
-        .params()
-        .map_err(|e| BadInput(format!("--compare-tree \"{flags}\": {e}")).into())
+    parsed.tree.params().map_err(|e| bad(&e.to_string()).into())
 }
 
 /// `--modes`: a comma-separated list, `all` standing for every mode.
@@ -540,6 +538,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     checksum,
                     if agrees { "" } else { "  (differs)" }
                 );
+                // The second tree's row (`--compare-tree`), printed under the first's.
+                let second_tree = results.get(1).map(|(second, c)| {
+                    let same = *c == checksum;
+                    if !same {
+                        disagreements.push(format!("{name} {mode} {t} threads, second tree"));
+                    }
+                    let (lo, hi, med) = spread(second);
+                    let mut ratios: Vec<f64> =
+                        second.iter().zip(rates).map(|(b, a)| b / a).collect();
+                    let ratio = median(&mut ratios);
+                    println!(
+                        "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  second tree: {ratio:.3}x the first (median of paired passes){}",
+                        "",
+                        "",
+                        "",
+                        "",
+                        "",
+                        "",
+                        med,
+                        lo,
+                        hi,
+                        if same { "" } else { ", checksum differs" }
+                    );
+                    SecondTree {
+                        mrays_median: med,
+                        mrays_min: lo,
+                        mrays_max: hi,
+                        ratio_median: ratio,
+                    }
+                });
                 rows.push(Row {
                     set: name.clone(),
                     mode: mode.to_string(),
@@ -551,34 +579,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     mrays_min: lo,
                     mrays_max: hi,
                     checksum: checksum.to_string(),
-                    second_tree: results.get(1).map(|(second, c)| {
-                        if *c != checksum {
-                            disagreements.push(format!("{name} {mode} {t} threads, second tree"));
-                        }
-                        let (lo, hi, med) = spread(second);
-                        let mut ratios: Vec<f64> =
-                            second.iter().zip(rates).map(|(b, a)| b / a).collect();
-                        let ratio = median(&mut ratios);
-                        println!(
-                            "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  second tree: {ratio:.3}x the first (median of paired passes){}",
-                            "",
-                            "",
-                            "",
-                            "",
-                            "",
-                            "",
-                            med,
-                            lo,
-                            hi,
-                            if *c == checksum { "" } else { ", checksum differs" }
-                        );
-                        SecondTree {
-                            mrays_median: med,
-                            mrays_min: lo,
-                            mrays_max: hi,
-                            ratio_median: ratio,
-                        }
-                    }),
+                    second_tree,
                 });
             }
         }
