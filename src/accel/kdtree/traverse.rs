@@ -300,6 +300,22 @@ impl<T: Copy> Stack<T> {
         self.len = 0;
     }
 
+    /// The entries, bottom first.
+    #[cfg(test)]
+    pub(super) fn as_slice(&self) -> &[T] {
+        // SAFETY: `push` is the only writer and raises `len` only after writing slot
+        // `len`, so the first `len` slots hold initialized items; `MaybeUninit<T>` has
+        // `T`'s layout.
+        unsafe { std::slice::from_raw_parts(self.items.as_ptr().cast::<T>(), self.len) }
+    }
+
+    /// Becomes a copy of `other` (its entries only, not the free slots).
+    #[inline]
+    pub(super) fn copy_from(&mut self, other: &Stack<T>) {
+        self.items[..other.len].copy_from_slice(&other.items[..other.len]);
+        self.len = other.len;
+    }
+
     #[inline]
     pub(super) fn pop(&mut self) -> Option<T> {
         self.len = self.len.checked_sub(1)?;

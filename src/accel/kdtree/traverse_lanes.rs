@@ -10,6 +10,13 @@
 //! computed with those of its `W - 1` neighbours in the stream (`KdTree::start_block`):
 //! one set of vector divisions instead of three scalar ones on each ray's critical path.
 //!
+//! Those `W` rays also take their first steps together (`KdTree::descend_block`): while
+//! every one of them goes on to the same child, one node load and one SIMD step serve
+//! them all, and each ray keeps its own interval and pushes. Neighbours in a stream
+//! usually start close together (bounces off nearby points, shadow rays from them, a
+//! camera's rays), and a third of a conference-room diffuse ray's steps come before
+//! its block's rays part (perf/stream.md, "Fourteenth session").
+//!
 //! Invariant, so each ray's answer is the scalar path's bit for bit: a lane repeats
 //! `KdTree::step` for its ray operation by operation (the band's ends at the split,
 //! the near/far tests, the empty-child skips, the intervals and the pushes on the
@@ -19,9 +26,9 @@
 //! needs its own rule).
 
 use super::KdTree;
-use super::node::{NodeLanes, as_words};
+use super::node::{LEFT_EMPTY, NodeLanes, RIGHT_EMPTY, as_words};
 use super::stats::bump;
-use super::traverse::{PLANE_SLACK, Walk};
+use super::traverse::{PLANE_SLACK, Stack, Walk};
 use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::RayPacket;
 use crate::ray::{Hit, Ray};
@@ -94,7 +101,8 @@ fn lanes_of(mut bits: LaneBits) -> impl Iterator<Item = usize> {
 /// How a ray of the stream starts ([`Starts`]).
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Begin {
-    /// At the root with the interval and per-axis values of [`Starts`].
+    /// At the block's shared node with the interval, stack and per-axis values of
+    /// [`Starts`].
     Walk,
     /// Not at all: the ray misses the tree's box or is not usable.
     Miss,
@@ -116,6 +124,12 @@ struct Starts {
     inv: [[f32; MAX_LANES]; 3],
     lo_off: [[f32; MAX_LANES]; 3],
     hi_off: [[f32; MAX_LANES]; 3],
+    /// Where the walking rays' shared descent ended ([`KdTree::descend_block`]), after
+    /// `steps` inner steps from the root; each ray's interval above is the one it has
+    /// there, and `stacks` hold what each pushed on the way.
+    node: u32,
+    steps: u32,
+    stacks: [Stack<(u32, f32, f32)>; MAX_LANES],
 }
 
 impl Starts {
@@ -130,8 +144,96 @@ impl Starts {
             inv: [[0.0; MAX_LANES]; 3],
             lo_off: [[0.0; MAX_LANES]; 3],
             hi_off: [[0.0; MAX_LANES]; 3],
+            node: 0,
+            steps: 0,
+            stacks: std::array::from_fn(|_| Stack::new()),
         }
     }
+}
+
+/// The scalar step's tests at one inner node per lane ([`KdTree::step`], in its
+/// order): the lane walk's steps and the blocks' shared descent both decide with them.
+struct PlaneTests<W: Simd> {
+    /// Near is the right child (the direction is negative; never zero here).
+    negative: Mask<W>,
+    near_empty: Mask<W>,
+    far_empty: Mask<W>,
+    near_only: Mask<W>,
+    far_only: Mask<W>,
+    both: Mask<W>,
+    /// Where the ray enters the far child, and the band's far end at the split.
+    entry: Vf<W>,
+    hi: Vf<W>,
+}
+
+impl<W: Simd> PlaneTests<W> {
+    /// The tests at planes `split` for rays with the axis's `[inv, lo_off, hi_off]` and
+    /// intervals `(t_near, t_far)`, whose left and right children are empty leaves
+    /// where `empty` says so.
+    #[inline(always)]
+    fn new(
+        split: Vf<W>,
+        [inv, lo_off, hi_off]: [Vf<W>; 3],
+        (t_near, t_far): (Vf<W>, Vf<W>),
+        [left_empty, right_empty]: [Mask<W>; 2],
+    ) -> PlaneTests<W> {
+        let negative = inv.cmp_lt(Vf::<W>::ZERO);
+        let (lo, hi) = (split.mul_add(inv, lo_off), split.mul_add(inv, hi_off));
+        let near_only = lo.cmp_gt(t_far);
+        let far_only = !near_only & hi.cmp_lt(t_near);
+        PlaneTests {
+            negative,
+            near_empty: (negative & right_empty) | (!negative & left_empty),
+            far_empty: (negative & left_empty) | (!negative & right_empty),
+            near_only,
+            far_only,
+            both: !near_only & !far_only,
+            entry: lo.max_gt(t_near),
+            hi,
+        }
+    }
+
+    /// The step goes only to empty children (or to an empty near child and a far one
+    /// that starts `past_best`), so it ends at the pops.
+    #[inline(always)]
+    fn stop(&self, past_best: Mask<W>) -> Mask<W> {
+        (self.near_only & self.near_empty)
+            | (self.far_only & self.far_empty)
+            | (self.both & self.near_empty & (self.far_empty | past_best))
+    }
+
+    /// A step that goes on goes to the far child (else to the near one).
+    #[inline(always)]
+    fn to_far(&self) -> Mask<W> {
+        self.far_only | (self.both & self.near_empty)
+    }
+
+    /// The step pushes the far child.
+    #[inline(always)]
+    fn pushes(&self) -> Mask<W> {
+        self.both & !self.near_empty & !self.far_empty
+    }
+
+    /// The intervals after the step, in the `moving` lanes.
+    #[inline(always)]
+    fn intervals(&self, moving: Mask<W>, (t_near, t_far): (Vf<W>, Vf<W>)) -> (Vf<W>, Vf<W>) {
+        let select = Vf::<W>::select;
+        (
+            select(moving & self.both & self.near_empty, self.entry, t_near),
+            select(
+                moving & self.both & !self.near_empty,
+                self.hi.min_lt(t_far),
+                t_far,
+            ),
+        )
+    }
+}
+
+/// A block's per-axis values in lanes, as [`KdTree::start_block`] computes them.
+struct Axes<W: Simd> {
+    inv: [Vf<W>; 3],
+    lo_off: [Vf<W>; 3],
+    hi_off: [Vf<W>; 3],
 }
 
 /// The walks of `W::LANES` rays, one per lane.
@@ -157,14 +259,20 @@ impl Group {
         }
     }
 
-    /// Lane `i` takes ray `r` at the root with its interval `(t_near, t_far)` in the
-    /// tree's box and its per-axis `[inv, lo_off, hi_off]`, no hit yet (its walk's
-    /// stack already empty).
+    /// Lane `i` takes ray `r` at `node` with its interval `(t_near, t_far)` there and
+    /// its per-axis `[inv, lo_off, hi_off]`, no hit yet (its walk's stack already set).
     #[inline(always)]
-    fn begin(&mut self, i: usize, r: usize, (t_near, t_far): (f32, f32), axes: [[f32; 3]; 3]) {
+    fn begin(
+        &mut self,
+        i: usize,
+        r: usize,
+        node: u32,
+        (t_near, t_far): (f32, f32),
+        axes: [[f32; 3]; 3],
+    ) {
         self.best[i] = Hit::MISS;
         let st = &mut self.st;
-        st.node[i] = 0;
+        st.node[i] = node;
         st.t_near[i] = t_near;
         st.t_far[i] = t_far;
         st.best_t[i] = Hit::MISS.t;
@@ -250,9 +358,9 @@ impl KdTree {
             match s.begin[k] {
                 Begin::Miss => done(r, false, Hit::MISS),
                 Begin::Walk => {
-                    g.walks[i].stack.clear();
+                    g.walks[i].stack.copy_from(&s.stacks[k]);
                     let axes = [&s.inv, &s.lo_off, &s.hi_off].map(|v| [0, 1, 2].map(|a| v[a][k]));
-                    g.begin(i, r, (s.t_near[k], s.t_far[k]), axes);
+                    g.begin(i, r, s.node, (s.t_near[k], s.t_far[k]), axes);
                     return;
                 }
                 Begin::Scalar if ray.dir.cmpeq(glam::Vec3::ZERO).any() => {
@@ -265,7 +373,7 @@ impl KdTree {
                     if self.start_walk(ray, walk) {
                         let (x, interval) = (&walk.axes, (walk.t_near, walk.t_far));
                         let axes = [&x.inv, &x.lo_off, &x.hi_off].map(|v| [v[0], v[1], v[2]]);
-                        g.begin(i, r, interval, axes);
+                        g.begin(i, r, 0, interval, axes);
                         return;
                     }
                     done(r, false, Hit::MISS);
@@ -277,7 +385,8 @@ impl KdTree {
     /// The starts of the rays of `rays` from `first` on, `W::LANES` of them, into `s`:
     /// [`KdTree::start_walk`]'s interval and per-axis values in lanes, the same
     /// operations in the same order (the box clip is [`clip_to_box_packet`]), so each
-    /// lane that starts a walk starts it as the scalar set-up does.
+    /// lane that starts a walk starts it as the scalar set-up does; then the walking
+    /// rays' shared descent ([`KdTree::descend_block`]).
     #[inline(never)]
     fn start_block<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
         let block = &rays[first..rays.len().min(first + W::LANES)];
@@ -310,13 +419,75 @@ impl KdTree {
                 Begin::Miss
             };
         }
-        store_f::<W>(t_near, &mut s.t_near);
-        store_f::<W>(t_far, &mut s.t_far);
         for a in 0..3 {
             store_f::<W>(p.inv_dir[a], &mut s.inv[a]);
             store_f::<W>(lo_off[a], &mut s.lo_off[a]);
             store_f::<W>(hi_off[a], &mut s.hi_off[a]);
         }
+        let axes = Axes {
+            inv: p.inv_dir,
+            lo_off,
+            hi_off,
+        };
+        self.descend_block::<W>(s, walk, (t_near, t_far), &axes);
+    }
+
+    /// The first steps of the rays in `walk`, taken together from the root while every
+    /// one of them goes on to the same child: one node load per step for all of them,
+    /// the split axis the same in every lane. Each lane repeats [`KdTree::step`]'s
+    /// operations as [`KdTree::lanes_step`] does (the band's ends, the near/far tests,
+    /// the skips of empty children, the intervals, the pushes onto the ray's own
+    /// stack), so a ray starts its walk where its scalar walk is after as many steps,
+    /// with the same interval and stack. The descent ends before the first leaf, the
+    /// first step on which the rays part, and the first step that ends at the pops (a
+    /// ray going only to empty children); `(t_near, t_far)` are the rays' intervals at
+    /// the root, and `s` gets them at the shared node.
+    #[inline(never)]
+    fn descend_block<W: Simd>(
+        &self,
+        s: &mut Starts,
+        walk: Mask<W>,
+        (mut t_near, mut t_far): (Vf<W>, Vf<W>),
+        axes: &Axes<W>,
+    ) {
+        let every = |on: bool| Mask::<W>::from_bits(if on { W::all_bits() } else { 0 });
+        let all = walk.bits();
+        for stack in &mut s.stacks[..W::LANES] {
+            stack.clear();
+        }
+        let (mut node, mut steps) = (0u32, 0u32);
+        while all != 0 && !self.nodes[node as usize].is_leaf() {
+            let n = self.nodes[node as usize];
+            let a = n.axis().min(2);
+            let empty = n.empty_children();
+            let p = PlaneTests::<W>::new(
+                Vf::<W>::splat(n.split),
+                [axes.inv[a], axes.lo_off[a], axes.hi_off[a]],
+                (t_near, t_far),
+                [
+                    every(empty & LEFT_EMPTY != 0),
+                    every(empty & RIGHT_EMPTY != 0),
+                ],
+            );
+            // No hit yet, so no far child lies past the best one.
+            let stop = p.stop(Mask::<W>::NONE);
+            let to_far = p.to_far();
+            let right = ((to_far & !p.negative) | (!to_far & p.negative)).bits() & all;
+            if stop.bits() & all != 0 || (right != 0 && right != all) {
+                break;
+            }
+            let far = |i: usize| n.children() + (p.negative.bits() >> i & 1 == 0) as u32;
+            for i in lanes_of((walk & p.pushes()).bits()) {
+                s.stacks[i].push((far(i), p.entry.lane(i), t_far.lane(i)));
+            }
+            (t_near, t_far) = p.intervals(walk, (t_near, t_far));
+            node = n.children() + (right != 0) as u32;
+            steps += 1;
+            bump(|c| c.node_steps += all.count_ones() as u64);
+        }
+        (s.node, s.steps) = (node, steps);
+        store_f::<W>(t_near, &mut s.t_near);
+        store_f::<W>(t_far, &mut s.t_far);
     }
 
     /// One iteration: every live lane's node loaded, the inner steps decided in SIMD,
@@ -349,36 +520,26 @@ impl KdTree {
         };
         let (inv, lo_off, hi_off) = (pick(&st.inv), pick(&st.lo_off), pick(&st.hi_off));
         let (t_near, t_far) = (vf::<W>(&st.t_near), vf::<W>(&st.t_far));
-        // Near is the right child where the direction is negative (never zero here).
-        let negative = inv.cmp_lt(Vf::<W>::ZERO);
+        let p = PlaneTests::<W>::new(split, [inv, lo_off, hi_off], (t_near, t_far), n.empty);
         let right = n.children + one;
-        let near = Vu::<W>::select(negative, right, n.children);
-        let far = Vu::<W>::select(negative, n.children, right);
-        let [left_empty, right_empty] = n.empty;
-        let near_empty = (negative & right_empty) | (!negative & left_empty);
-        let far_empty = (negative & left_empty) | (!negative & right_empty);
-        // The scalar step's tests, in its order.
-        let (lo, hi) = (split.mul_add(inv, lo_off), split.mul_add(inv, hi_off));
-        let near_only = lo.cmp_gt(t_far);
-        let far_only = !near_only & hi.cmp_lt(t_near);
-        let both = !near_only & !far_only;
-        let entry = lo.max_gt(t_near);
+        let near = Vu::<W>::select(p.negative, right, n.children);
+        let far = Vu::<W>::select(p.negative, n.children, right);
+        let entry = p.entry;
         let past_best = if ANY_HIT {
             Mask::<W>::NONE
         } else {
             entry.cmp_gt(vf::<W>(&st.best_t))
         };
         // Lanes whose step goes only to empty children end it at the pops.
-        let stop = inner
-            & ((near_only & near_empty)
-                | (far_only & far_empty)
-                | (both & near_empty & (far_empty | past_best)));
-        let to_far = far_only | (both & near_empty);
-        let push = (inner & both & !near_empty & !far_empty).bits();
+        let stop = inner & p.stop(past_best);
+        let push = (inner & p.pushes()).bits();
         let moving = inner & !stop;
-        let next_node = Vu::<W>::select(moving & to_far, far, Vu::<W>::select(moving, near, node));
-        let new_near = select(moving & both & near_empty, entry, t_near);
-        let new_far = select(moving & both & !near_empty, hi.min_lt(t_far), t_far);
+        let next_node = Vu::<W>::select(
+            moving & p.to_far(),
+            far,
+            Vu::<W>::select(moving, near, node),
+        );
+        let (new_near, new_far) = p.intervals(moving, (t_near, t_far));
         bump(|c| c.node_steps += inner.bits().count_ones() as u64);
         for i in lanes_of(push) {
             g.walks[i]
@@ -468,16 +629,49 @@ mod tests {
         out
     }
 
+    /// Rays that start together, as a stream's neighbours do: blocks from one point
+    /// (inside the box, on its corner, outside it) in every direction, and blocks from
+    /// nearby points in nearby directions, some of them axis-parallel with signed zeros.
+    fn neighbours(b: &crate::scene::Aabb, rng: &mut Rng) -> Vec<Ray> {
+        let mut out = Vec::new();
+        for (j, o) in [
+            (b.min + b.max) * 0.5,
+            b.min,
+            b.max + b.extent(),
+            rng.point(b.min, b.max),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for i in 0..48 {
+                let mut d = rng.unit_vector();
+                if i % 7 == 3 {
+                    d[j % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
+                }
+                out.push(Ray::new(o, d, 0.0, f32::INFINITY));
+            }
+            let d0 = rng.unit_vector();
+            for _ in 0..48 {
+                let o = o + (rng.unit_vector() * 1e-3 * b.extent().length());
+                let d = (d0 + rng.unit_vector() * 0.05).normalize();
+                out.push(Ray::new(o, d, 0.0, f32::INFINITY));
+            }
+        }
+        out
+    }
+
     /// [`KdTree::start_block`] sets up every ray as [`KdTree::start_walk`] does, bit for
     /// bit, and sends to the scalar set-up exactly the rays with a zero or subnormal
-    /// direction component.
+    /// direction component; a walking ray starts at the block's shared node with the
+    /// interval and stack its scalar walk has after as many steps.
     fn blocks_match_scalar<W: Simd>() {
         let g = random_soup(500, 0.2, 11);
         let tree = KdTree::build(&g);
         let mut rng = Rng::new(W::LANES as u64);
-        let rays = rays(&tree.bounds, &mut rng);
+        let mut rays = rays(&tree.bounds, &mut rng);
+        rays.extend(neighbours(&tree.bounds, &mut rng));
         let mut s = Starts::new();
-        let (mut walks, mut scalar) = (0, 0);
+        let (mut walks, mut scalar, mut shared) = (0, 0, 0);
         for first in (0..rays.len()).step_by(W::LANES - 1) {
             tree.start_block::<W>(&mut s, &rays, first);
             for (k, ray) in rays[s.base..s.end].iter().enumerate() {
@@ -493,6 +687,21 @@ mod tests {
                     Begin::Miss => assert!(!reaches && !odd, "{what}: missed"),
                     Begin::Walk => {
                         assert!(reaches && !odd, "{what}: walked");
+                        for _ in 0..s.steps {
+                            let at = tree.nodes[w.node as usize];
+                            assert!(!at.is_leaf(), "{what}: shared steps end before a leaf");
+                            let mut best = Hit::MISS;
+                            assert_eq!(tree.step::<false>(&mut w, ray, &mut best), None);
+                        }
+                        shared += s.steps;
+                        assert_eq!(w.node, s.node, "{what}: node after {} steps", s.steps);
+                        let entry = |&(n, a, b): &(u32, f32, f32)| (n, a.to_bits(), b.to_bits());
+                        assert_eq!(
+                            s.stacks[k].as_slice().iter().map(entry).collect::<Vec<_>>(),
+                            w.stack.as_slice().iter().map(entry).collect::<Vec<_>>(),
+                            "{what}: stack after {} steps",
+                            s.steps
+                        );
                         let bits = |v: [f32; 3]| v.map(f32::to_bits);
                         let col = |a: &[[f32; MAX_LANES]; 3]| [a[0][k], a[1][k], a[2][k]];
                         assert_eq!(
@@ -521,8 +730,8 @@ mod tests {
             }
         }
         assert!(
-            walks > 100 && scalar > 50,
-            "{walks} walks, {scalar} scalar set-ups"
+            walks > 100 && scalar > 50 && shared > 200,
+            "{walks} walks, {scalar} scalar set-ups, {shared} shared steps"
         );
     }
 
