@@ -34,6 +34,16 @@ import subprocess
 import sys
 
 
+def run(cmd, **kw):
+    """`cmd`'s standard output; exits with a one-line error when it fails."""
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, check=True, **kw).stdout
+    except FileNotFoundError:
+        sys.exit(f"sites.py: {cmd[0]} not found (it is needed for this profile)")
+    except subprocess.CalledProcessError as e:
+        sys.exit(f"sites.py: {' '.join(cmd[:3])} ... failed: {e.stderr.strip()[:200]}")
+
+
 # A perf mmap event of an executable mapping: start, size, file offset, path.
 MMAP = re.compile(
     r"PERF_RECORD_MMAP2? .*\[(0x[0-9a-f]+)\((0x[0-9a-f]+)\) @ (0x[0-9a-f]+) .*r-xp (\S+)"
@@ -42,10 +52,7 @@ MMAP = re.compile(
 
 def perf_samples(data, binary):
     """Sample counts per file address of `binary` from a perf.data file."""
-    out = subprocess.run(
-        ["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"],
-        capture_output=True, text=True, check=True,
-    ).stdout
+    out = run(["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"])
     name = binary.split("/")[-1]
     maps = []
     for line in out.splitlines():
@@ -73,9 +80,7 @@ def perf_samples(data, binary):
 
 def file_offset_to_vaddr(binary):
     """vaddr - file offset of the executable segment (readelf -l)."""
-    out = subprocess.run(
-        ["readelf", "-lW", binary], capture_output=True, text=True, check=True
-    ).stdout
+    out = run(["readelf", "-lW", binary])
     for line in out.splitlines():
         t = line.split()
         if t and t[0] == "LOAD" and "E" in t[6:-1]:
@@ -123,10 +128,10 @@ def callgrind_costs(path, function):
 
 def inline_chains(binary, addrs):
     """Address -> [(function, file:line)], outermost frame first."""
-    out = subprocess.run(
+    out = run(
         ["addr2line", "-a", "-i", "-f", "-C", "-e", binary],
-        input="\n".join(hex(a) for a in addrs), capture_output=True, text=True, check=True,
-    ).stdout.splitlines()
+        input="\n".join(hex(a) for a in addrs),
+    ).splitlines()
     chains, cur, i = {}, None, 0
     while i < len(out):
         if out[i].startswith("0x"):
@@ -161,8 +166,11 @@ def main():
     ap.add_argument("--top", type=int, default=25)
     args = ap.parse_args()
 
-    with open(args.profile, "rb") as f:
-        callgrind = f.read(16).startswith(b"# callgrind")
+    try:
+        with open(args.profile, "rb") as f:
+            callgrind = f.read(16).startswith(b"# callgrind")
+    except OSError as e:
+        sys.exit(f"sites.py: {args.profile}: {e.strerror}")
     if callgrind:
         costs, events = callgrind_costs(args.profile, args.function)
     else:
