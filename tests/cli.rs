@@ -437,7 +437,7 @@ fn bench_times_a_second_tree_pass_by_pass() {
         "--threads",
         "1",
         "--modes",
-        "scalar,stream",
+        "scalar,stream,tile64",
         "--sets",
         "primary,diffuse",
         "--compare-tree",
@@ -452,7 +452,7 @@ fn bench_times_a_second_tree_pass_by_pass() {
         stdout
             .matches("the first (median of paired passes)")
             .count(),
-        4,
+        6,
         "{stdout}"
     );
     let v: serde_json::Value =
@@ -460,7 +460,12 @@ fn bench_times_a_second_tree_pass_by_pass() {
     assert_eq!(v["compare_tree"], "--empty-cut 0 --traversal-cost 5");
     assert!(v["second_build_seconds"].as_f64().unwrap() >= 0.0);
     let rows = v["results"].as_array().unwrap();
-    assert_eq!(rows.len(), 4);
+    assert_eq!(rows.len(), 6);
+    // Each tree's tile counts come from its own passes.
+    for set in ["primary", "diffuse"] {
+        let note = format!("{set} 1 threads, second tree: ");
+        assert_eq!(stdout.matches(&note).count(), 1, "{note}\n{stdout}");
+    }
     for r in rows {
         let second = &r["second_tree"];
         let (lo, med, hi) = (

@@ -291,11 +291,7 @@ fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
 fn pool_tile_counts(pool: &rayon::ThreadPool) -> TileCounts {
     pool.broadcast(|_| tile_counts())
         .into_iter()
-        .fold(TileCounts::default(), |a, c| TileCounts {
-            tiles: a.tiles + c.tiles,
-            fallbacks: a.fallbacks + c.fallbacks,
-            entry_depth: a.entry_depth + c.entry_depth,
-        })
+        .fold(TileCounts::default(), TileCounts::plus)
 }
 
 /// The traversal counters of every thread of `pool`, summed (zero without the `stats`
@@ -317,10 +313,22 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// One tree's side of a measurement ([`measure`]).
+pub struct Measured {
+    /// Mrays/s, in pass order.
+    pub rates: Vec<f64>,
+    pub checksum: Checksum,
+    /// The traversal counters (`stats` feature) and tile counts of this tree's passes
+    /// alone, the warm-up pass included.
+    pub work: TraversalCounts,
+    pub tiles: TileCounts,
+}
+
 /// One measurement of each of `accels` (one tree, or two with `--compare-tree`): a
 /// warm-up pass each, then `repeat` timed passes each, the trees taking turns in the
-/// order A B, B A, A B ... so that pass `j` of each lies next to pass `j` of the other;
-/// rates in Mrays/s, in pass order.
+/// order A B, B A, A B ... so that pass `j` of each lies next to pass `j` of the other.
+/// The counters are read between passes, outside the timed part, so each tree gets its
+/// own.
 pub fn measure<A: Accel>(
     pool: &rayon::ThreadPool,
     accels: &[&A],
@@ -328,17 +336,36 @@ pub fn measure<A: Accel>(
     mode: Mode,
     query: Query,
     repeat: usize,
-) -> Vec<(Vec<f64>, Checksum)> {
-    let pass = |accel: &A| pool.install(|| checksum_set(accel, set, mode, query));
-    let mut out: Vec<(Vec<f64>, Checksum)> = accels.iter().map(|a| (Vec::new(), pass(a))).collect();
+) -> Vec<Measured> {
+    // One pass of `accel`, its time, and the counts it added to `m`.
+    let pass = |accel: &A, m: &mut Measured| {
+        let (work, tiles) = (pool_traversal_counts(pool), pool_tile_counts(pool));
+        let start = Instant::now();
+        let c = std::hint::black_box(pool.install(|| checksum_set(accel, set, mode, query)));
+        let seconds = start.elapsed().as_secs_f64();
+        m.work = m.work.plus(pool_traversal_counts(pool).since(work));
+        m.tiles = m.tiles.plus(pool_tile_counts(pool).since(tiles));
+        (c, seconds)
+    };
+    let mut out: Vec<Measured> = accels
+        .iter()
+        .map(|a| {
+            let mut m = Measured {
+                rates: Vec::new(),
+                checksum: Checksum::default(),
+                work: TraversalCounts::default(),
+                tiles: TileCounts::default(),
+            };
+            m.checksum = pass(a, &mut m).0;
+            m
+        })
+        .collect();
     for j in 0..repeat {
         for k in 0..accels.len() {
             let k = if j % 2 == 0 { k } else { accels.len() - 1 - k };
-            let start = Instant::now();
-            let c = std::hint::black_box(pass(accels[k]));
-            let seconds = start.elapsed().as_secs_f64();
-            assert_eq!(c, out[k].1, "a pass gave a different answer");
-            out[k].0.push(set.len() as f64 / seconds / 1e6);
+            let (c, seconds) = pass(accels[k], &mut out[k]);
+            assert_eq!(c, out[k].checksum, "a pass gave a different answer");
+            out[k].rates.push(set.len() as f64 / seconds / 1e6);
         }
     }
     out
@@ -494,30 +521,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut first: Option<Checksum> = None;
         for (t, pool) in &pools {
             for &mode in &args.modes.0 {
-                let tiles_before = pool_tile_counts(pool);
-                let work_before = pool_traversal_counts(pool);
                 let results = measure(pool, &trees, set, mode, query, args.repeat);
-                let (rates, checksum) = &results[0];
-                let checksum = *checksum;
-                if stats::ENABLED {
-                    let w = pool_traversal_counts(pool).since(work_before);
-                    // One warm-up pass and `repeat` timed ones.
-                    let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
-                    work_notes.push(format!(
-                        "{name} {mode:<8} {t} threads: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
-                        w.node_steps as f64 / rays,
-                        w.leaf_visits as f64 / rays,
-                        w.prim_tests as f64 / rays
-                    ));
-                }
-                if mode == Mode::Tile64 {
-                    let (now, was) = (pool_tile_counts(pool), tiles_before);
-                    let tiles = (now.tiles - was.tiles).max(1) as f64;
-                    tile_notes.push(format!(
-                        "{name} {t} threads: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
-                        100.0 * (now.fallbacks - was.fallbacks) as f64 / tiles,
-                        (now.entry_depth - was.entry_depth) as f64 / tiles
-                    ));
+                let (rates, checksum) = (&results[0].rates, results[0].checksum);
+                for (k, m) in results.iter().enumerate() {
+                    let which = if k == 0 { "" } else { ", second tree" };
+                    if stats::ENABLED {
+                        let w = m.work;
+                        // One warm-up pass and `repeat` timed ones.
+                        let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
+                        work_notes.push(format!(
+                            "{name} {mode:<8} {t} threads{which}: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
+                            w.node_steps as f64 / rays,
+                            w.leaf_visits as f64 / rays,
+                            w.prim_tests as f64 / rays
+                        ));
+                    }
+                    if mode == Mode::Tile64 {
+                        let tiles = m.tiles.tiles.max(1) as f64;
+                        tile_notes.push(format!(
+                            "{name} {t} threads{which}: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
+                            100.0 * m.tiles.fallbacks as f64 / tiles,
+                            m.tiles.entry_depth as f64 / tiles
+                        ));
+                    }
                 }
                 let agrees = *first.get_or_insert(checksum) == checksum;
                 if !agrees {
@@ -539,8 +565,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     if agrees { "" } else { "  (differs)" }
                 );
                 // The second tree's row (`--compare-tree`), printed under the first's.
-                let second_tree = results.get(1).map(|(second, c)| {
-                    let same = *c == checksum;
+                let second_tree = results.get(1).map(|m| {
+                    let (second, same) = (&m.rates, m.checksum == checksum);
                     if !same {
                         disagreements.push(format!("{name} {mode} {t} threads, second tree"));
                     }
