@@ -105,6 +105,14 @@ pub trait Float:
     fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
         transpose4_lanes(v, out)
     }
+    /// Vector `j` holds word `j` of each 16-byte row, `rows(i)` in lane `i`: one row of
+    /// `LANES` array-of-structures records (the leaf test's TriAccel records), as 4x4
+    /// transposes where the target has them instead of one insert per lane and word.
+    /// No bit changes.
+    #[inline(always)]
+    fn from_rows4<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [Self; 4] {
+        rows4_lanes(rows)
+    }
     /// `self < o` per lane (false where either is NaN, as the scalar `<`).
     fn cmp_lt(self, o: Self) -> Self::Mask;
     /// `self > o` per lane (false where either is NaN).
@@ -326,11 +334,56 @@ fn transpose4_x8(v: [wide::f32x8; 4], out: &mut [[f32; 4]]) {
     }
 }
 
+/// [`Float::from_rows4`] lane by lane, at any width.
+#[inline(always)]
+fn rows4_lanes<'r, F: Float>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [F; 4] {
+    std::array::from_fn(|j| F::from_fn(|i| rows(i)[j]))
+}
+
+/// [`Float::from_rows4`] of `wide`'s f32x4: four row loads and one 4x4 transpose
+/// (eight shuffles for sixteen words).
+#[inline(always)]
+fn rows4_x4<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [wide::f32x4; 4] {
+    wide::f32x4::transpose(std::array::from_fn(|i| wide::f32x4::new(*rows(i))))
+}
+
+/// [`Float::from_rows4`] of `wide`'s f32x8: rows `i` and `i + 4` loaded into the two
+/// halves of one register, then a 4x4 transpose within each half (eight shuffles for
+/// thirty-two words).
+#[inline(always)]
+fn rows4_x8<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [wide::f32x8; 4] {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX is enabled at compile time (the cfg above); each load reads one
+        // `[f32; 4]` (unaligned loads), and under AVX `wide::f32x8` is one `__m256`.
+        unsafe {
+            let half = |i: usize| _mm_loadu_ps(rows(i).as_ptr());
+            let row =
+                |i: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(half(i)), half(i + 4));
+            let (a, b, c, d) = (row(0), row(1), row(2), row(3));
+            // Words 0, 1 (lo) and 2, 3 (hi) of rows a and b, interleaved; likewise c, d.
+            let (ab_lo, ab_hi) = (_mm256_unpacklo_ps(a, b), _mm256_unpackhi_ps(a, b));
+            let (cd_lo, cd_hi) = (_mm256_unpacklo_ps(c, d), _mm256_unpackhi_ps(c, d));
+            [
+                _mm256_shuffle_ps::<0x44>(ab_lo, cd_lo),
+                _mm256_shuffle_ps::<0xEE>(ab_lo, cd_lo),
+                _mm256_shuffle_ps::<0x44>(ab_hi, cd_hi),
+                _mm256_shuffle_ps::<0xEE>(ab_hi, cd_hi),
+            ]
+            .map(|x| std::mem::transmute::<__m256, wide::f32x8>(x))
+        }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+    rows4_lanes(rows)
+}
+
 /// The [`Float`], [`Uint`] and [`LaneMask`] impls of one pair of `wide` types: masks
 /// are float vectors with every bit of a lane set or clear. `$t8` and `$t4` are the
-/// type's [`Float::transpose8`] and [`Float::transpose4_into`].
+/// type's [`Float::transpose8`] and [`Float::transpose4_into`], `$r4` its
+/// [`Float::from_rows4`].
 macro_rules! wide_backend {
-    ($f:ident, $u:ident, $t8:path, $t4:path) => {
+    ($f:ident, $u:ident, $t8:path, $t4:path, $r4:path) => {
         impl BitAnd for VBool<wide::$f> {
             type Output = Self;
             #[inline]
@@ -399,6 +452,10 @@ macro_rules! wide_backend {
             #[inline]
             fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
                 $t4(v, out)
+            }
+            #[inline(always)]
+            fn from_rows4<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [Self; 4] {
+                $r4(rows)
             }
             #[inline]
             fn splat(x: f32) -> Self {
@@ -512,9 +569,15 @@ macro_rules! wide_backend {
     };
 }
 
-wide_backend!(f32x4, u32x4, transpose8_lanes, transpose4_lanes);
-wide_backend!(f32x8, u32x8, transpose8_x8, transpose4_x8);
-wide_backend!(f32x16, u32x16, transpose8_lanes, transpose4_lanes);
+wide_backend!(f32x4, u32x4, transpose8_lanes, transpose4_lanes, rows4_x4);
+wide_backend!(f32x8, u32x8, transpose8_x8, transpose4_x8, rows4_x8);
+wide_backend!(
+    f32x16,
+    u32x16,
+    transpose8_lanes,
+    transpose4_lanes,
+    rows4_lanes
+);
 
 width!(
     W4,
@@ -1229,6 +1292,41 @@ mod tests {
         transpose4_moves_every_bit::<W4>();
         transpose4_moves_every_bit::<W8>();
         transpose4_moves_every_bit::<W16>();
+    }
+
+    /// `from_rows4` puts word `j` of row `i` in lane `i` of vector `j`, bits unchanged
+    /// (signed zeros, NaN payloads, integer bit patterns), whichever row each lane reads.
+    fn rows4_move_every_bit<W: Simd>() {
+        let rows: Vec<[f32; 4]> = (0..2 * W::LANES as u32)
+            .map(|i| {
+                [
+                    -0.0,
+                    f32::from_bits(0xffc0_0000 | i),
+                    i as f32 + 0.5,
+                    f32::from_bits((i << 2) | (i % 3)),
+                ]
+            })
+            .collect();
+        for pick in [|i: usize| i, |i: usize| 2 * i + 1, |i: usize| i.min(2)] {
+            let v = Vf::<W>::from_rows4(|i| &rows[pick(i)]);
+            for (j, x) in v.iter().enumerate() {
+                for i in 0..W::LANES {
+                    assert_eq!(
+                        x.lane(i).to_bits(),
+                        rows[pick(i)][j].to_bits(),
+                        "{} lanes: lane {i} word {j}",
+                        W::LANES
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rows4_at_every_width() {
+        rows4_move_every_bit::<W4>();
+        rows4_move_every_bit::<W8>();
+        rows4_move_every_bit::<W16>();
     }
 
     /// `&`, `shr`, `gather` and `gather_pairs` against the scalar operations lane by lane.

@@ -151,6 +151,15 @@ impl TriAccel {
         (self.k_id & 3) as usize
     }
 
+    /// The record as its three 16-byte rows (`n_u n_v n_d k_id`, `b_nu b_nv b_d err`,
+    /// `c_nu c_nv c_d mag`; `k_id` as float bits), for loads of a whole row at a time.
+    #[inline(always)]
+    pub fn rows(&self) -> &[[f32; 4]; 3] {
+        // SAFETY: the record is `repr(C)`, twelve 4-byte fields without padding (48
+        // bytes, asserted below) and aligned to 16; every bit pattern is a valid f32.
+        unsafe { &*(self as *const TriAccel).cast::<[[f32; 4]; 3]>() }
+    }
+
     /// The id of the triangle.
     #[inline(always)]
     pub fn id(&self) -> u32 {
