@@ -156,7 +156,7 @@ impl TriAccel {
     #[inline(always)]
     pub fn rows(&self) -> &[[f32; 4]; 3] {
         // SAFETY: the record is `repr(C)`, twelve 4-byte fields without padding (48
-        // bytes, asserted below) and aligned to 16; every bit pattern is a valid f32.
+        // bytes, asserted above) and aligned to 16; every bit pattern is a valid f32.
         unsafe { &*(self as *const TriAccel).cast::<[[f32; 4]; 3]>() }
     }
 

@@ -4,9 +4,9 @@
 //! its `t`, `u`, `v` and edge bound are the scalar ones bit for bit; the lanes are then
 //! folded into the closest hit in leaf order with the limit the scalar loop would have
 //! used for each, and lanes within the bound of an edge run the scalar exact rule.
-//! The records are read a 16-byte row at a time and transposed ([`Float::from_rows4`]):
-//! a third fewer shuffles than a lane-by-lane gather of each field, 1.02x on the
-//! conference room's and Sponza's diffuse streams (perf/stream.md, "Fifteenth session").
+//! The records are read a 16-byte row at a time and transposed ([`Float::from_rows4`])
+//! instead of field by field, lane by lane: 1.04x on the conference room's and the
+//! bunny's diffuse streams (perf/stream.md, "Fifteenth session").
 
 use super::Prims;
 use super::triaccel::{exact_rule, max_abs};
