@@ -217,28 +217,15 @@ pub trait Uint:
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
     /// Each lane shifted right by `n` (< 32) bits.
     fn shr(self, n: u32) -> Self;
-    /// Lane `i` is `table[idx[i]]`: one load per lane, all independent, so a lane walk's
-    /// node loads are in flight together. Panics when an index is out of bounds.
-    #[inline]
-    fn gather(table: &[u32], idx: Self) -> Self {
-        Self::from_fn(|i| table[idx.lane(i) as usize])
-    }
     /// Lane `i` of the first vector is `table[2 idx[i]]`, of the second
-    /// `table[2 idx[i] + 1]`: the two words of an 8-byte record per lane. Panics when an
-    /// index is out of bounds.
-    #[inline]
-    fn gather_pairs(table: &[u32], idx: Self) -> (Self, Self) {
-        let idx2 = idx + idx;
-        (
-            Self::gather(table, idx2),
-            Self::gather(table, idx2 + Self::splat(1)),
-        )
-    }
-    /// [`Uint::gather_pairs`] with lane `i`'s index `idx[i]`, read from memory: a scalar
-    /// load per index instead of a lane extraction from a vector (the lane walk keeps
-    /// its nodes in an array; 1.02-1.06x on every stream, perf/stream.md).
+    /// `table[2 idx[i] + 1]`: the two words of an 8-byte record per lane, all loads
+    /// independent, so a lane walk's node loads are in flight together. The indices
+    /// are read from memory (the lane walk keeps its nodes in an array): a scalar load
+    /// per index, where taking each out of a vector cost two instructions per lane
+    /// (1.02-1.06x on every stream, perf/stream.md). Panics when an index is out of
+    /// bounds.
     #[inline(always)]
-    fn gather_pairs_at(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
+    fn gather_pairs(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
         (
             Self::from_fn(|i| table[2 * idx[i] as usize]),
             Self::from_fn(|i| table[2 * idx[i] as usize + 1]),
@@ -655,34 +642,6 @@ pub mod avx512 {
         };
     }
 
-    /// [`Uint::gather_pairs`] of 16 lanes with lane `i`'s index `idx(i)`: one 8-byte load
-    /// per lane (half the loads of two word gathers), then the even and the odd words
-    /// picked out with two permutes.
-    #[inline(always)]
-    fn pairs16(table: &[u32], idx: impl Fn(usize) -> u32) -> (U32x16, U32x16) {
-        let pair = |i: usize| {
-            let k = 2 * idx(i) as usize;
-            let w = &table[k..k + 2];
-            u64::from(w[0]) | u64::from(w[1]) << 32
-        };
-        let lo: [u64; 8] = std::array::from_fn(pair);
-        let hi: [u64; 8] = std::array::from_fn(|i| pair(i + 8));
-        // SAFETY: `[u64; 8]` and `__m512i` have the same size, every bit pattern is
-        // valid for both; AVX-512F is enabled (see `avx!`).
-        unsafe {
-            let (lo, hi) = (
-                std::mem::transmute::<[u64; 8], __m512i>(lo),
-                std::mem::transmute::<[u64; 8], __m512i>(hi),
-            );
-            let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-            let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-            (
-                U32x16(_mm512_permutex2var_epi32(lo, even, hi)),
-                U32x16(_mm512_permutex2var_epi32(lo, odd, hi)),
-            )
-        }
-    }
-
     /// Sixteen f32 lanes in one `zmm` register.
     #[derive(Clone, Copy)]
     #[repr(transparent)]
@@ -1088,15 +1047,33 @@ pub mod avx512 {
                 mask.0, if_false.0, if_true.0
             )))
         }
+        /// One 8-byte load per lane (half the loads of two word gathers), then the
+        /// even and the odd words picked out with two permutes.
         #[inline(always)]
-        fn gather_pairs(table: &[u32], idx: Self) -> (Self, Self) {
-            pairs16(table, |i| idx.lane(i))
-        }
-        /// As [`Uint::gather_pairs`], each index a scalar load instead of a lane
-        /// extraction.
-        #[inline(always)]
-        fn gather_pairs_at(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
-            pairs16(table, |i| idx[i])
+        fn gather_pairs(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
+            let pair = |i: usize| {
+                let k = 2 * idx[i] as usize;
+                let w = &table[k..k + 2];
+                u64::from(w[0]) | u64::from(w[1]) << 32
+            };
+            let lo: [u64; 8] = std::array::from_fn(pair);
+            let hi: [u64; 8] = std::array::from_fn(|i| pair(i + 8));
+            // SAFETY: `[u64; 8]` and `__m512i` have the same size, every bit pattern is
+            // valid for both; AVX-512F is enabled (see `avx!`).
+            unsafe {
+                let (lo, hi) = (
+                    std::mem::transmute::<[u64; 8], __m512i>(lo),
+                    std::mem::transmute::<[u64; 8], __m512i>(hi),
+                );
+                let even =
+                    _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+                let odd =
+                    _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+                (
+                    U32x16(_mm512_permutex2var_epi32(lo, even, hi)),
+                    U32x16(_mm512_permutex2var_epi32(lo, odd, hi)),
+                )
+            }
         }
         #[inline(always)]
         fn shr(self, n: u32) -> Self {
@@ -1349,14 +1326,12 @@ mod tests {
         rows4_move_every_bit::<W16>();
     }
 
-    /// `&`, `shr`, `gather`, `gather_pairs` and `gather_pairs_at` against the scalar
-    /// operations lane by lane.
+    /// `&`, `shr` and `gather_pairs` against the scalar operations lane by lane.
     fn uint_ops_match_scalar<W: Simd>() {
         let words: Vec<u32> = (0..100u32)
             .map(|i| i.wrapping_mul(0x9e37_79b9) ^ 0xf00d)
             .collect();
         let a = Vu::<W>::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) | 0x8000_0003);
-        let idx = Vu::<W>::from_fn(|i| (i as u32 * 37) % 100);
         for n in [0, 1, 2, 4, 31] {
             let r = a.shr(n);
             for i in 0..W::LANES {
@@ -1364,23 +1339,29 @@ mod tests {
             }
         }
         let m = a & Vu::<W>::splat(0xf0f0_000f);
-        let g = Vu::<W>::gather(&words, idx);
-        let half = Vu::<W>::from_fn(|i| (i as u32 * 13) % 50);
-        let (even, odd) = Vu::<W>::gather_pairs(&words, half);
-        let at: [u32; MAX_LANES] = std::array::from_fn(|i| half.lane(i.min(W::LANES - 1)));
-        let (even_at, odd_at) = Vu::<W>::gather_pairs_at(&words, &at);
-        for i in 0..W::LANES {
-            assert_eq!(
-                even_at.lane(i),
-                even.lane(i),
-                "gather_pairs_at even lane {i}"
-            );
-            assert_eq!(odd_at.lane(i), odd.lane(i), "gather_pairs_at odd lane {i}");
+        // Lanes past `W::LANES` hold an index out of bounds: they are never read.
+        let idx: [u32; MAX_LANES] = std::array::from_fn(|i| {
+            if i < W::LANES {
+                (i as u32 * 13) % 50
+            } else {
+                1000
+            }
+        });
+        let (even, odd) = Vu::<W>::gather_pairs(&words, &idx);
+        for (i, &at) in idx.iter().enumerate().take(W::LANES) {
             assert_eq!(m.lane(i), a.lane(i) & 0xf0f0_000f, "and lane {i}");
-            assert_eq!(g.lane(i), words[idx.lane(i) as usize], "gather lane {i}");
-            let k = 2 * half.lane(i) as usize;
+            let k = 2 * at as usize;
             assert_eq!(even.lane(i), words[k], "gather_pairs even lane {i}");
             assert_eq!(odd.lane(i), words[k + 1], "gather_pairs odd lane {i}");
+        }
+        // An index out of bounds in any lane panics, the last word's pair included.
+        for lane in [0, W::LANES - 1] {
+            for bad in [50, 1000] {
+                let mut out = idx;
+                out[lane] = bad;
+                let r = std::panic::catch_unwind(|| Vu::<W>::gather_pairs(&words, &out));
+                assert!(r.is_err(), "{} lanes: index {bad} in lane {lane}", W::LANES);
+            }
         }
     }
 

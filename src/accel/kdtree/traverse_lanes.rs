@@ -2,7 +2,7 @@
 //! walk (Wald, Benthin and Boulos 2008 call this the SPMD or "single ray per lane"
 //! form; Aila and Laine 2009 run it on GPUs). Incoherent rays share no nodes, so a
 //! packet's lanes cannot decide together; here they do not have to. Every iteration
-//! loads each lane's node ([`Uint::gather_pairs_at`]: `W` independent loads in flight, so
+//! loads each lane's node ([`Uint::gather_pairs`]: `W` independent loads in flight, so
 //! the cache misses of `W` rays overlap), decides the inner-node step of every lane in
 //! SIMD without a branch, and ends the steps at leaves and empty children lane by lane
 //! with the scalar code (`KdTree::leaf_step`, `Walk::pop`). A lane whose walk ends takes the
@@ -506,7 +506,7 @@ impl KdTree {
         let st = &mut g.st;
         // Idle lanes sit at the root, a valid index.
         let node = Vu::<W>::from_fn(|i| st.node[i]);
-        let (split, bits) = Vu::<W>::gather_pairs_at(words, &st.node);
+        let (split, bits) = Vu::<W>::gather_pairs(words, &st.node);
         let split = Vf::<W>::from_bits(split);
         let n = NodeLanes::<W>::decode(bits);
         let live_m = Mask::<W>::from_bits(g.live);
