@@ -314,6 +314,7 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// One tree's side of a measurement ([`measure`]).
+#[derive(Default)]
 pub struct Measured {
     /// Mrays/s, in pass order.
     pub rates: Vec<f64>,
@@ -350,12 +351,7 @@ pub fn measure<A: Accel>(
     let mut out: Vec<Measured> = accels
         .iter()
         .map(|a| {
-            let mut m = Measured {
-                rates: Vec::new(),
-                checksum: Checksum::default(),
-                work: TraversalCounts::default(),
-                tiles: TileCounts::default(),
-            };
+            let mut m = Measured::default();
             m.checksum = pass(a, &mut m).0;
             m
         })

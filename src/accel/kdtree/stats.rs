@@ -17,25 +17,31 @@ pub struct TraversalCounts {
     pub prim_tests: u64,
 }
 
-impl TraversalCounts {
-    /// `self - earlier`, field by field.
-    pub fn since(self, earlier: TraversalCounts) -> TraversalCounts {
-        TraversalCounts {
-            node_steps: self.node_steps - earlier.node_steps,
-            leaf_visits: self.leaf_visits - earlier.leaf_visits,
-            prim_tests: self.prim_tests - earlier.prim_tests,
-        }
-    }
+/// `since` (`self - earlier`) and `plus` (the sum), field by field, for a struct of
+/// counters named with its fields: the one definition of both for every kind of
+/// counts (a field left out of the list is a missing field, a compile error).
+macro_rules! field_wise {
+    ($t:ident { $($f:ident),+ $(,)? }) => {
+        impl $t {
+            /// `self - earlier`, field by field.
+            pub fn since(self, earlier: $t) -> $t {
+                $t { $($f: self.$f - earlier.$f),+ }
+            }
 
-    /// The sum, field by field.
-    pub fn plus(self, o: TraversalCounts) -> TraversalCounts {
-        TraversalCounts {
-            node_steps: self.node_steps + o.node_steps,
-            leaf_visits: self.leaf_visits + o.leaf_visits,
-            prim_tests: self.prim_tests + o.prim_tests,
+            /// The sum, field by field.
+            pub fn plus(self, o: $t) -> $t {
+                $t { $($f: self.$f + o.$f),+ }
+            }
         }
-    }
+    };
 }
+pub(super) use field_wise;
+
+field_wise!(TraversalCounts {
+    node_steps,
+    leaf_visits,
+    prim_tests
+});
 
 /// Whether the counters are compiled in.
 pub const ENABLED: bool = cfg!(feature = "stats");

@@ -58,25 +58,11 @@ pub struct TileCounts {
     pub entry_depth: u64,
 }
 
-impl TileCounts {
-    /// `self - earlier`, field by field.
-    pub fn since(self, earlier: TileCounts) -> TileCounts {
-        TileCounts {
-            tiles: self.tiles - earlier.tiles,
-            fallbacks: self.fallbacks - earlier.fallbacks,
-            entry_depth: self.entry_depth - earlier.entry_depth,
-        }
-    }
-
-    /// The sum, field by field.
-    pub fn plus(self, o: TileCounts) -> TileCounts {
-        TileCounts {
-            tiles: self.tiles + o.tiles,
-            fallbacks: self.fallbacks + o.fallbacks,
-            entry_depth: self.entry_depth + o.entry_depth,
-        }
-    }
-}
+super::stats::field_wise!(TileCounts {
+    tiles,
+    fallbacks,
+    entry_depth
+});
 
 thread_local! {
     static COUNTS: Cell<TileCounts> = const { Cell::new(TileCounts { tiles: 0, fallbacks: 0, entry_depth: 0 }) };
