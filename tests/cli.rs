@@ -345,8 +345,8 @@ fn bench_prints_agreeing_checksums_and_writes_json() {
     assert_eq!(w["results"][0]["checksum"], rows[0]["checksum"]);
     assert_eq!(
         w["results"].as_array().unwrap().len(),
-        2,
-        "scalar and packet"
+        3,
+        "the default modes: packet, tile64 and stream"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -463,7 +463,7 @@ fn bench_times_a_second_tree_pass_by_pass() {
     assert_eq!(rows.len(), 6);
     // Each tree's tile counts come from its own passes.
     for set in ["primary", "diffuse"] {
-        let note = format!("{set} 1 threads, second tree: ");
+        let note = format!("{set} 1 thread, second tree: ");
         assert_eq!(stdout.matches(&note).count(), 1, "{note}\n{stdout}");
     }
     for r in rows {
@@ -703,4 +703,153 @@ fn spd_sizes_too_large_are_out_of_range_not_malformed() {
             assert!(!err.contains("whole number"), "{scene}: {err}");
         }
     }
+}
+
+/// Asserts that the run was refused as bad input (exit 2, no panic) with `want` in its
+/// message.
+fn refused(out: &Output, want: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(want), "`{err}` lacks `{want}`");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// The help texts list every mode a command takes, an unknown mode's error lists what
+/// that command takes, and `bench` by default runs the packet, tile and stream modes and
+/// names the fastest of each set.
+#[test]
+fn modes_are_listed_as_each_command_takes_them() {
+    for command in ["render", "trace"] {
+        let out = raypack(&[command, "--help"]);
+        check(&out, "help");
+        let help = String::from_utf8_lossy(&out.stdout);
+        for mode in [
+            "scalar", "packet4", "packet8", "packet16", "tile64", "stream",
+        ] {
+            assert!(help.contains(mode), "{command} --help: no {mode}\n{help}");
+        }
+    }
+    let out = raypack(&[
+        "render",
+        "scenes/part1.toml",
+        "-o",
+        "x.png",
+        "--mode",
+        "all",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("unknown mode `all`") && !err.contains("or all"),
+        "{err}"
+    );
+    let out = raypack(&["bench", SCENE, "--modes", "packet,bogus"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("packet or all"));
+
+    let out = raypack(&[
+        "bench",
+        SCENE,
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+    ]);
+    check(&out, "bench with the default modes");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for set in ["primary", "shadow", "diffuse"] {
+        let modes: Vec<&str> = stdout
+            .lines()
+            .filter(|l| l.starts_with(&format!("{set} ")))
+            .filter_map(|l| l.split_whitespace().nth(1))
+            .collect();
+        assert_eq!(modes.len(), 3, "{set}: {modes:?}\n{stdout}");
+        assert!(
+            modes.contains(&"tile64") && modes.contains(&"stream"),
+            "{modes:?}"
+        );
+        let fastest = format!("fastest  {set} on 1 thread: ");
+        let line = stdout.lines().find(|l| l.starts_with(&fastest));
+        let best = line.and_then(|l| l[fastest.len()..].split_whitespace().next());
+        assert!(best.is_some_and(|b| modes.contains(&b)), "{set}\n{stdout}");
+    }
+}
+
+/// Each output of `trace` and `rays` is refused under a name of another format, before
+/// any work, and nothing is written.
+#[test]
+fn ray_and_hit_files_must_be_named_as_such() {
+    let dir = scratch("names");
+    let rays = dir.join("primary.rays");
+    write_set("primary", &rays, 16, 16);
+    let png = dir.join("j.png");
+    let out = raypack(&["trace", SCENE, "--rays", s(&rays), "-o", s(&png)]);
+    refused(&out, "j.png: this file is written in the .hits format");
+    let out = raypack(&["rays", SCENE, "-o", s(&dir.join("r.png"))]);
+    refused(&out, "must end in .rays");
+    let out = raypack(&["rays", SCENE, "-o", s(&rays), "--hits", s(&png)]);
+    refused(&out, "must end in .hits");
+    assert!(!png.exists() && !dir.join("r.png").exists());
+    // Any case of the ending is the format's name.
+    let upper = dir.join("J.HITS");
+    check(
+        &raypack(&["trace", SCENE, "--rays", s(&rays), "-o", s(&upper)]),
+        "trace -o J.HITS",
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `info` refuses `--repeat 0` as `bench` does, counts memory per primitive (a scene of
+/// spheres has almost no triangles), and says what its depth limit limits.
+#[test]
+fn info_figures_mean_what_they_say() {
+    refused(
+        &raypack(&["info", SCENE, "--repeat", "0"]),
+        "--repeat must be at least 1",
+    );
+    let out = raypack(&["info", "spd:balls:3"]);
+    check(&out, "info spd:balls:3");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let total = stdout
+        .lines()
+        .find(|l| l.starts_with("memory total"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let per_prim: f64 = total
+        .split_whitespace()
+        .rev()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{total}"));
+    assert!(total.ends_with("bytes/primitive"), "{total}");
+    assert!(per_prim > 0.0 && per_prim < 1000.0, "{total}");
+    let depth = stdout
+        .lines()
+        .find(|l| l.starts_with("leaf depth"))
+        .unwrap();
+    assert!(depth.contains("SAH splits stop at depth"), "{depth}");
+}
+
+/// A triangle whose corners are finite but so far apart that its area overflows f32 is
+/// not called zero-area.
+#[test]
+fn huge_triangles_are_not_called_zero_area() {
+    let dir = scratch("huge");
+    let obj = dir.join("huge.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e30 0 0\nv 0 1e30 0\nv 0 0 0.5\nf 1 2 3\nf 6 4 5\nf 1 2 2\n",
+    )
+    .unwrap();
+    let out = raypack(&["info", s(&obj)]);
+    check(&out, "info huge.obj");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("2 degenerate (1 of zero area, 1 whose area overflows f32) triangles skipped"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

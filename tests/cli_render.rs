@@ -302,3 +302,217 @@ fn gi_integrators_render_the_cornell_box() {
     assert!(!dir.join("zero.pfm").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A floor (y = 0) under an emissive square (y = 1) whose winding faces down, or up with
+/// `facing_up`, as an OBJ with its MTL in `dir`.
+fn lit_floor(dir: &std::path::Path, facing_up: bool) -> PathBuf {
+    let light_faces = if facing_up {
+        "f 5 8 7\nf 5 7 6\n"
+    } else {
+        "f 5 6 7\nf 5 7 8\n"
+    };
+    std::fs::write(
+        dir.join("lit.mtl"),
+        "newmtl floor\nKd 0.8 0.8 0.8\nnewmtl lamp\nKd 0.5 0.5 0.5\nKe 10 10 10\n",
+    )
+    .unwrap();
+    let obj = dir.join(format!("lit-{facing_up}.obj"));
+    std::fs::write(
+        &obj,
+        format!(
+            "mtllib lit.mtl\n\
+             v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\n\
+             v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\n\
+             usemtl floor\nf 1 4 3\nf 1 3 2\nusemtl lamp\n{light_faces}"
+        ),
+    )
+    .unwrap();
+    obj
+}
+
+/// A mesh with emitters is lit by them in the Whitted tracer, one-sided as they emit,
+/// and not by the key and fill lights a bare mesh gets: under a lamp facing down the
+/// floor is bright, under one facing up it has the ambient term alone.
+#[test]
+fn whitted_lights_a_mesh_by_its_emitters() {
+    let dir = scratch("emitters");
+    let mut brightest = Vec::new();
+    for facing_up in [false, true] {
+        let obj = lit_floor(&dir, facing_up);
+        let pfm = dir.join(format!("lit-{facing_up}.pfm"));
+        let out = raypack(&[
+            "render",
+            s(&obj),
+            "-o",
+            s(&pfm),
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--eye",
+            "0,3,-3",
+            "--target",
+            "0,0,0",
+        ]);
+        check(&out, "render");
+        let film = raypack::render::Film::read_pfm(&pfm).unwrap();
+        brightest.push(
+            film.pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0, f32::max),
+        );
+    }
+    // The floor's albedo 0.8 under a unit light at N.L near 1 / under the ambient 0.05.
+    assert!(brightest[0] > 0.5, "lamp facing down: {brightest:?}");
+    assert!(brightest[1] < 0.1, "lamp facing up: {brightest:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Path tracing a mesh without emitters gives a picture (a uniform sky, said on stderr),
+/// and a dark PNG is told the exposure that brightens it.
+#[test]
+fn gi_renders_of_bare_meshes_and_dark_scenes_say_what_to_do() {
+    let dir = scratch("gi-hints");
+    let obj = dir.join("bare.obj");
+    std::fs::write(&obj, "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 3 2\n").unwrap();
+    let pfm = dir.join("bare.pfm");
+    let out = raypack(&[
+        "render",
+        s(&obj),
+        "-o",
+        s(&pfm),
+        "--integrator",
+        "path",
+        "--spp",
+        "2",
+        "--width",
+        "16",
+        "--height",
+        "16",
+    ]);
+    check(&out, "bare mesh");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("uniform sky of radiance 1"), "{err}");
+    let film = raypack::render::Film::read_pfm(&pfm).unwrap();
+    assert!(
+        film.pixels.iter().all(|p| p.min_element() > 0.0),
+        "sky everywhere"
+    );
+
+    // The tutorial's point lights are dim radiance for a path tracer.
+    let scene = repo().join("scenes/part1.toml");
+    let png = dir.join("part1.png");
+    let args = [
+        "render",
+        s(&scene),
+        "-o",
+        s(&png),
+        "--integrator",
+        "path",
+        "--spp",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "24",
+    ];
+    let out = raypack(&args);
+    check(&out, "part1 path");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("is dark") && err.contains("--exposure "),
+        "{err}"
+    );
+    assert!(png.is_file());
+    let out = raypack(&[&args[..], &["--exposure", "6"]].concat());
+    check(&out, "part1 path exposed");
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("is dark"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A closed stdout (`raypack render ... | head`) loses nothing: the render exits 0 and
+/// writes its image.
+#[test]
+fn a_closed_stdout_does_not_lose_the_image() {
+    let dir = scratch("epipe");
+    let png = dir.join("part1.png");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_raypack"))
+        .current_dir(repo())
+        .args([
+            "render",
+            "scenes/part1.toml",
+            "-o",
+            s(&png),
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.is_file());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--spp` of the path and photon integrators is bounded; the summary counts in words
+/// that agree with their numbers.
+#[test]
+fn gi_spp_is_bounded_and_the_summary_speaks_of_one_thread() {
+    let dir = scratch("spp");
+    let scene = repo().join("scenes/part1.toml");
+    let out_path = dir.join("x.pfm");
+    for integrator in ["path", "photon"] {
+        let out = raypack(&[
+            "render",
+            s(&scene),
+            "-o",
+            s(&out_path),
+            "--integrator",
+            integrator,
+            "--spp",
+            "4294967295",
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{integrator}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("1 to 65536"), "{err}");
+        assert!(!out_path.exists());
+    }
+    let out = raypack(&[
+        "render",
+        s(&scene),
+        "-o",
+        s(&out_path),
+        "--integrator",
+        "path",
+        "--spp",
+        "1",
+        "--threads",
+        "1",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    check(&out, "one sample, one thread");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("1 sample per pixel, 1 thread\n"),
+        "{stdout}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

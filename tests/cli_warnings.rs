@@ -129,6 +129,7 @@ fn the_library_reports_one_warning_per_mesh_file() {
     let want = raypack::scene::Warning::DegenerateTriangles {
         path: dir.join("degenerate.obj"),
         count: 2,
+        overflow: 0,
     };
     assert_eq!(warnings, vec![want.clone(), want]);
     let (_, warnings) = raypack::scene::file::load_with_warnings(&dir.join("clean.toml")).unwrap();

@@ -232,7 +232,10 @@ impl Mode {
             if name == "all" {
                 out.extend(Mode::ALL);
             } else {
-                out.push(name.parse()?);
+                out.push(
+                    name.parse()
+                        .map_err(|_| unknown_mode(name, ", packet or all"))?,
+                );
             }
         }
         out.dedup();
@@ -258,11 +261,16 @@ impl std::str::FromStr for Mode {
             "packet16" => Ok(Mode::Packet16),
             "tile64" => Ok(Mode::Tile64),
             "stream" => Ok(Mode::Stream),
-            _ => Err(format!(
-                "unknown mode `{s}` (expected scalar, packet4, packet8, packet16, tile64, stream, packet or all)"
-            )),
+            _ => Err(unknown_mode(s, " or packet")),
         }
     }
+}
+
+/// The error for an unknown mode name: every mode's name, then `more` (the names a
+/// caller accepts beside them).
+fn unknown_mode(name: &str, more: &str) -> String {
+    let names: Vec<&str> = Mode::ALL.iter().map(|m| m.name()).collect();
+    format!("unknown mode `{name}`: expected {}{more}", names.join(", "))
 }
 
 /// Lanes of a tile's SIMD groups: 16 with AVX-512, else 8.

@@ -59,9 +59,10 @@ pub struct Args {
     pub sets: Vec<String>,
     /// Modes: scalar (one ray at a time), packet4, packet8, packet16 (4, 8 or 16 rays,
     /// one SIMD lane each: in an image set a 2x2, 4x2 or 4x4 pixel block, elsewhere
-    /// consecutive rays), packet (the widest this CPU runs natively), tile64, stream or
-    /// all. Rates are Mrays/s.
-    #[arg(long, default_value = "scalar,packet", value_parser = |s: &str| Mode::parse_list(s).map(Modes))]
+    /// consecutive rays), packet (the widest this CPU runs natively), tile64 (64 rays
+    /// as SIMD groups sharing one walk), stream (one ray per lane, each on its own walk)
+    /// or all. Rates are Mrays/s; the fastest mode of each set is named after the table.
+    #[arg(long, default_value = "packet,tile64,stream", value_parser = |s: &str| Mode::parse_list(s).map(Modes))]
     pub modes: Modes,
     /// Thread counts (default: 1 and every core; 0 means every core).
     #[arg(long, value_delimiter = ',')]
@@ -417,9 +418,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 _ => sets.diffuse = set,
             }
         }
-        println!("ray sets read from {}", dir.display());
+        outln!("ray sets read from {}", dir.display());
     }
-    println!(
+    outln!(
         "raypack bench {}: {}; {} ({} builder, K_T {}, K_I {}, empty bonus {}) built in {:.3} s",
         args.scene,
         super::primitive_counts(&scene.geometry),
@@ -432,7 +433,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let second = second_params.map(|p| build_accel(&scene.geometry, &p));
     if let (Some((tree, seconds)), Some(flags)) = (&second, &args.compare_tree) {
-        println!(
+        outln!(
             "second tree (--compare-tree \"{flags}\"): {} nodes, built in {seconds:.3} s; the first has {} nodes",
             tree.nodes().len(),
             accel.nodes().len()
@@ -441,11 +442,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let trees: Vec<&BenchAccel> = std::iter::once(&accel)
         .chain(second.as_ref().map(|(tree, _)| tree))
         .collect();
-    println!(
+    outln!(
         "machine: {}, {} cores, {}",
-        machine.cpu, machine.cores, machine.simd
+        machine.cpu,
+        machine.cores,
+        machine.simd
     );
-    println!(
+    outln!(
         "sets: primary {} rays ({}x{}), shadow {}, diffuse {}; light [{:.6}, {:.6}, {:.6}] ({}), offset {:.6}",
         sets.primary.len(),
         sets.primary.width,
@@ -489,14 +492,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 format!("{name} {split} of {total} ({share:.1}%)")
             })
             .collect();
-        println!(
+        outln!(
             "{mode}: packets split by direction signs (traced as one group per sign octant): {}",
             shares.join(", ")
         );
     }
-    println!(
+    outln!(
         "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9}  checksum (hits:sum of prim ids)",
-        "set", "mode", "width", "packet", "threads", "rays", "Mrays/s", "min", "max"
+        "set",
+        "mode",
+        "width",
+        "packet",
+        "threads",
+        "rays",
+        "Mrays/s",
+        "min",
+        "max"
     );
 
     let pools = threads
@@ -526,7 +537,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         // One warm-up pass and `repeat` timed ones.
                         let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
                         work_notes.push(format!(
-                            "{name} {mode:<8} {t} threads{which}: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
+                            "{name} {mode:<8} {}{which}: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
+                            super::count(*t, "thread"),
                             w.node_steps as f64 / rays,
                             w.leaf_visits as f64 / rays,
                             w.prim_tests as f64 / rays
@@ -535,7 +547,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     if mode == Mode::Tile64 {
                         let tiles = m.tiles.tiles.max(1) as f64;
                         tile_notes.push(format!(
-                            "{name} {t} threads{which}: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
+                            "{name} {}{which}: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
+                            super::count(*t, "thread"),
                             100.0 * m.tiles.fallbacks as f64 / tiles,
                             m.tiles.entry_depth as f64 / tiles
                         ));
@@ -543,10 +556,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
                 let agrees = *first.get_or_insert(checksum) == checksum;
                 if !agrees {
-                    disagreements.push(format!("{name} {mode} {t} threads"));
+                    disagreements.push(format!("{name} {mode} {}", super::count(*t, "thread")));
                 }
                 let (lo, hi, med) = spread(rates);
-                println!(
+                outln!(
                     "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  {}{}",
                     name,
                     mode,
@@ -564,13 +577,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let second_tree = results.get(1).map(|m| {
                     let (second, same) = (&m.rates, m.checksum == checksum);
                     if !same {
-                        disagreements.push(format!("{name} {mode} {t} threads, second tree"));
+                        disagreements.push(format!(
+                            "{name} {mode} {}, second tree",
+                            super::count(*t, "thread")
+                        ));
                     }
                     let (lo, hi, med) = spread(second);
                     let mut ratios: Vec<f64> =
                         second.iter().zip(rates).map(|(b, a)| b / a).collect();
                     let ratio = median(&mut ratios);
-                    println!(
+                    outln!(
                         "{:<8} {:<8} {:>5} {:>6} {:>7} {:>9} {:>9.3} {:>9.3} {:>9.3}  second tree: {ratio:.3}x the first (median of paired passes){}",
                         "",
                         "",
@@ -607,16 +623,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let load_after = load_average();
+    if args.modes.0.len() > 1 {
+        for line in fastest(&rows) {
+            outln!("{line}");
+        }
+    }
     for note in &tile_notes {
-        println!("tile64, {note}");
+        outln!("tile64, {note}");
     }
     if stats::ENABLED {
-        println!("traversal work (a packet step counts once, whatever its active lanes):");
+        outln!("traversal work (a packet step counts once, whatever its active lanes):");
     }
     for note in &work_notes {
-        println!("  {note}");
+        outln!("  {note}");
     }
-    println!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
+    outln!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
     let busiest = threads.iter().copied().max().unwrap_or(1);
     if machine_was_busy(load_after, busiest, machine.cores) {
         eprintln!(
@@ -661,9 +682,69 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// One line per set and thread count naming the mode with the highest median rate, in
+/// the order the rows were measured.
+fn fastest(rows: &[Row]) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut seen = Vec::new();
+    for row in rows {
+        let key = (row.set.as_str(), row.threads);
+        if seen.contains(&key) {
+            continue;
+        }
+        seen.push(key);
+        let best = rows
+            .iter()
+            .filter(|r| (r.set.as_str(), r.threads) == key)
+            .max_by(|a, b| a.mrays_median.total_cmp(&b.mrays_median))
+            .unwrap_or(row);
+        lines.push(format!(
+            "fastest  {} on {}: {} at {:.3} Mrays/s",
+            row.set,
+            super::count(row.threads, "thread"),
+            best.mode,
+            best.mrays_median
+        ));
+    }
+    lines
+}
+
 #[cfg(test)]
 mod tests {
-    use super::machine_was_busy;
+    use super::{Row, fastest, machine_was_busy};
+
+    #[test]
+    fn fastest_names_the_best_mode_of_each_set_and_thread_count() {
+        let row = |set: &str, mode: &str, threads: usize, mrays: f64| Row {
+            set: set.into(),
+            mode: mode.into(),
+            width: 8,
+            packet_size: 8,
+            threads,
+            rays: 10,
+            mrays_median: mrays,
+            mrays_min: mrays,
+            mrays_max: mrays,
+            checksum: String::new(),
+            second_tree: None,
+        };
+        let rows = [
+            row("primary", "packet8", 1, 9.0),
+            row("primary", "stream", 1, 4.0),
+            row("primary", "packet8", 2, 17.0),
+            row("primary", "stream", 2, 18.0),
+            row("diffuse", "packet8", 1, 2.0),
+            row("diffuse", "stream", 1, 5.5),
+        ];
+        assert_eq!(
+            fastest(&rows),
+            [
+                "fastest  primary on 1 thread: packet8 at 9.000 Mrays/s",
+                "fastest  primary on 2 threads: stream at 18.000 Mrays/s",
+                "fastest  diffuse on 1 thread: stream at 5.500 Mrays/s",
+            ]
+        );
+    }
 
     #[test]
     fn busy_means_load_beyond_raypacks_own_threads() {

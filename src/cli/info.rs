@@ -61,7 +61,7 @@ struct Sah {
 #[derive(Serialize, Debug)]
 struct Part {
     bytes: usize,
-    bytes_per_triangle: f64,
+    bytes_per_primitive: f64,
 }
 
 #[derive(Serialize, Debug)]
@@ -121,6 +121,9 @@ fn reset_peak() -> Option<u64> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.repeat == 0 {
+        return Err(super::BadInput("--repeat must be at least 1".into()).into());
+    }
     super::check_outputs([("--json", args.json.as_ref())])?;
     let threads = super::thread_count(args.threads);
     let params = BuildParams {
@@ -137,7 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut seconds = Vec::new();
     let mut tree = None;
     let mut peak_extra: Option<u64> = None;
-    for _ in 0..args.repeat.max(1) {
+    for _ in 0..args.repeat {
         drop(tree.take());
         let before = reset_peak();
         let start = Instant::now();
@@ -153,24 +156,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     seconds.sort_by(f64::total_cmp);
     let s = tree.stats(&params);
     let tris = geometry.triangles.len();
-    let per_tri = |bytes: usize| bytes as f64 / tris.max(1) as f64;
-    println!("scene            {}", args.scene);
-    println!("primitives       {}", super::primitive_counts(geometry));
+    let bounded = tris + geometry.spheres.len() + geometry.boxes.len();
+    // Per primitive the tree holds or left out, so a scene of spheres does not divide by
+    // its (zero) triangles.
+    let per_prim = |bytes: usize| bytes as f64 / bounded.max(1) as f64;
+    outln!("scene            {}", args.scene);
+    outln!("primitives       {}", super::primitive_counts(geometry));
     let bounds = geometry.bounds();
     if bounds.is_empty() {
-        println!("bounds           empty (planes only)");
+        outln!("bounds           empty (planes only)");
     } else {
-        println!("bounds           min {} max {}", bounds.min, bounds.max);
+        outln!("bounds           min {} max {}", bounds.min, bounds.max);
     }
-    let bounded = tris + geometry.spheres.len() + geometry.boxes.len();
     let degenerate = bounded - s.build.tree_prims as usize;
-    println!(
+    outln!(
         "in tree          {} of {} bounded ({} left out; planes are tested beside the tree)",
         s.build.tree_prims,
         bounded,
         super::count(degenerate, "degenerate triangle"),
     );
-    println!(
+    outln!(
         "build            {:.3} s median of {} on {} (min {:.3} s), {} builder",
         seconds[seconds.len() / 2],
         super::count(seconds.len(), "build"),
@@ -179,25 +184,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params.builder
     );
     match peak_extra {
-        Some(bytes) => println!(
+        Some(bytes) => outln!(
             "build peak extra {:.2} MiB (peak resident set over the build, tree included)",
             bytes as f64 / (1 << 20) as f64
         ),
-        None => println!("build peak extra unknown"),
+        None => outln!("build peak extra unknown"),
     }
-    println!("nodes            {}", s.nodes);
-    println!("leaves           {} ({} empty)", s.leaves, s.empty_leaves);
-    println!(
-        "leaf depth       max {}, mean {:.2} (limit {})",
-        s.max_leaf_depth, s.mean_leaf_depth, s.build.max_depth_limit
+    outln!("nodes            {}", s.nodes);
+    outln!("leaves           {} ({} empty)", s.leaves, s.empty_leaves);
+    outln!(
+        "leaf depth       max {}, mean {:.2} (SAH splits stop at depth {}; the cuts of empty margins go on below them)",
+        s.max_leaf_depth,
+        s.mean_leaf_depth,
+        s.build.max_depth_limit
     );
-    println!(
+    outln!(
         "prims per leaf   {:.2} (non-empty leaves); {:.2} references per primitive",
-        s.mean_prims_per_leaf, s.refs_per_prim
+        s.mean_prims_per_leaf,
+        s.refs_per_prim
     );
-    println!(
+    outln!(
         "SAH cost         {:.2} (K_T {}, K_I {}, empty margins cut at {})",
-        s.sah_cost, params.traversal_cost, params.intersection_cost, params.empty_cut
+        s.sah_cost,
+        params.traversal_cost,
+        params.intersection_cost,
+        params.empty_cut
     );
     let total = s.node_bytes + s.leaf_bytes + s.index_bytes + s.triaccel_bytes;
     let mut memory = std::collections::BTreeMap::new();
@@ -208,16 +219,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ("TriAccel", "triaccel", s.triaccel_bytes),
         ("total", "total", total),
     ] {
-        println!(
-            "memory {name:<11} {:>10.2} MiB  {:>6.1} bytes/triangle",
+        outln!(
+            "memory {name:<11} {:>10.2} MiB  {:>6.1} bytes/primitive",
             bytes as f64 / (1 << 20) as f64,
-            per_tri(bytes)
+            per_prim(bytes)
         );
         memory.insert(
             key,
             Part {
                 bytes,
-                bytes_per_triangle: per_tri(bytes),
+                bytes_per_primitive: per_prim(bytes),
             },
         );
     }
@@ -243,7 +254,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         let rate = rays.len() as f64 / best / 1e6;
         let hit_fraction = hits as f64 / rays.len() as f64;
-        println!(
+        outln!(
             "primary rays     {rate:.2} Mrays/s scalar, 1 thread, best of 3 ({w}x{h}, {:.1}% hit, checksum {checksum:016x})",
             100.0 * hit_fraction
         );

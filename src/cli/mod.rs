@@ -1,4 +1,22 @@
 //! Subcommands, one file each.
+//!
+//! What a subcommand prints on stdout goes through `outln!` and `out!`: a closed
+//! stdout (`raypack render ... | head`) must not stop the work, so a render whose summary
+//! nobody reads still writes its image.
+
+/// `println!` that a closed stdout does not stop (see `write_stdout`).
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` that a closed stdout does not stop (see `write_stdout`).
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!($($arg)*))
+    };
+}
 
 pub mod bench;
 pub mod huge_pages;
@@ -255,6 +273,21 @@ pub fn check_output(flag: &str, path: &Path) -> anyhow::Result<()> {
         .with_context(|| format!("{flag} {}: cannot write there", path.display()))
 }
 
+/// Refuses an output name that does not end in `.{extension}` (any case): a hits file
+/// named `j.png` would be taken for an image by every other tool.
+pub fn check_extension(flag: &str, path: &Path, extension: &str) -> Result<(), BadInput> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case(extension))
+    {
+        return Ok(());
+    }
+    Err(BadInput(format!(
+        "{flag} {}: this file is written in the .{extension} format of ../shared/RAYS.md; its name must end in .{extension}",
+        path.display()
+    )))
+}
+
 /// [`check_output`] of each path that is given.
 pub fn check_outputs<'a>(
     outputs: impl IntoIterator<Item = (&'static str, Option<&'a PathBuf>)>,
@@ -267,13 +300,29 @@ pub fn check_outputs<'a>(
     Ok(())
 }
 
+/// Writes to stdout. A reader that went away (`EPIPE`, as after `| head`) is not an
+/// error, and any other failure is reported once on stderr: what the command writes to
+/// files matters more than its summary.
+pub fn write_stdout(args: std::fmt::Arguments) {
+    use std::io::Write;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    static REPORTED: AtomicBool = AtomicBool::new(false);
+    let result = std::io::stdout().lock().write_fmt(args);
+    if let Err(e) = result
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+        && !REPORTED.swap(true, Ordering::Relaxed)
+    {
+        eprintln!("raypack: warning: cannot write to stdout: {e}");
+    }
+}
+
 /// Writes `value` as pretty JSON to `path`, whole or not at all, and says so.
 pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
     raypack::output::write_bytes_atomic(path, text.as_bytes(), |e| e)
         .with_context(|| format!("{}: cannot write the report", path.display()))?;
-    println!("wrote {}", path.display());
+    outln!("wrote {}", path.display());
     Ok(())
 }
 

@@ -47,6 +47,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.output.is_some() {
         check_size_flags(args.width, args.height)?;
     }
+    for (flag, path, extension) in [("-o", &args.output, "rays"), ("--hits", &args.hits, "hits")] {
+        if let Some(path) = path {
+            super::check_extension(flag, path, extension)?;
+        }
+    }
     super::check_outputs([
         ("-o", args.output.as_ref()),
         ("--hits", args.hits.as_ref()),
@@ -56,7 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(obj) = &args.obj {
         raypack::scene::spd::write_obj(obj, &scene.geometry, args.sphere_rings)
             .with_context(|| format!("writing the OBJ of {}", args.scene))?;
-        println!("wrote {}", obj.display());
+        outln!("wrote {}", obj.display());
     }
     let Some(out) = &args.output else {
         return Ok(());
@@ -69,7 +74,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => (&sets.diffuse, None),
     };
     rayset::write_rays(out, set)?;
-    println!(
+    outln!(
         "{}: {} {} rays of {} (build {:.3} s); light [{}, {}, {}] ({}), offset {:.6}",
         out.display(),
         set.len(),
@@ -88,7 +93,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => standard::closest_hits(&accel, &set.rays),
         };
         rayset::write_hits(path, &hits)?;
-        println!(
+        outln!(
             "{}: {} hits",
             path.display(),
             rayset::Checksum::of_hits(&hits).hits

@@ -7,10 +7,11 @@
 //! bounds. `--eye`, `--target`, `--up` and `--vfov` override the camera of any scene.
 //!
 //! The output is checked before any work (its folder must exist and be writable), the
-//! kd-tree is built and the image rendered on a local rayon pool with a progress bar on
-//! stderr; the summary (build and render times, rays by kind, rays per second) is
-//! printed before the image is written (PNG, PFM or EXR by the name; whole or not at
-//! all), so a failed write still reports the render.
+//! kd-tree is built and the image rendered on a local rayon pool with its progress on
+//! stderr (a bar, or a line every few seconds when stderr is not a terminal); the
+//! summary (build and render times, rays by kind, rays per second) is printed before the
+//! image is written (PNG, PFM or EXR by the name; whole or not at all), so a failed write
+//! still reports the render.
 //!
 //! `--integrator path|photon` renders with global illumination instead
 //! ([`raypack::render::gi`]): a mesh scene is then lit by its emissive materials (MTL
@@ -31,10 +32,13 @@ use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
 use raypack::render::{Film, RayCounts, render, tiles};
 use raypack::scene::View;
 use raypack::scene::catalog::{self, SceneArg};
+use raypack::scene::light::emitter_lights;
 use raypack::scene::{AntiAlias, Camera, Light, Scene, Warning};
 use serde::Serialize;
 use std::collections::{BTreeMap, BinaryHeap};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
@@ -54,7 +58,8 @@ pub struct Args {
     pub height: Option<u32>,
     /// Camera samples per pixel, a square n*n: 1 turns anti-aliasing off; otherwise an
     /// adaptive scene stays adaptive with n x n samples at edges, any other samples every
-    /// pixel n x n. With --integrator path or photon: any count (default 16).
+    /// pixel n x n. With --integrator path or photon: any count from 1 to 65536
+    /// (default 16).
     #[arg(long)]
     pub spp: Option<u32>,
     /// Worker threads (0, the default: one per core).
@@ -63,9 +68,11 @@ pub struct Args {
     /// Seed of the area-light and glossy samples (default: the scene's).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Trace camera blocks and shadow rays as packets of 4, 8 or 16 rays (packet4,
-    /// packet8, packet16; packet: the widest this CPU runs natively), or one ray at a
-    /// time (scalar); every mode gives the same image.
+    /// How rays are traced: scalar (one ray at a time), packet4, packet8, packet16
+    /// (camera blocks and shadow rays as packets of 4, 8 or 16 rays; packet, the
+    /// default: the widest this CPU runs natively), tile64 (64 camera rays as SIMD groups
+    /// sharing one walk) or stream (one ray per SIMD lane, each on its own walk). Every
+    /// mode gives the same image.
     #[arg(long, default_value = "packet")]
     pub mode: Mode,
     #[command(flatten)]
@@ -200,6 +207,17 @@ fn load(arg: &str) -> anyhow::Result<(Scene, Vec<Warning>, Source)> {
     }
 }
 
+/// The most samples per pixel of the path and photon integrators: 2^16, far past a
+/// converged image, and a bound on what a typing slip can start.
+pub const MAX_GI_SPP: u32 = 1 << 16;
+
+/// Shadow rays per shading point that the lights of a mesh's emitters share
+/// ([`emitter_lights`]).
+pub const EMITTER_SAMPLES: u32 = 16;
+/// The most emissive triangles that become Whitted lights: each costs a shadow ray per
+/// shading point at least.
+pub const MAX_EMITTER_LIGHTS: usize = 64;
+
 /// Brightness of the key light of [`light_rig`].
 pub const KEY_LIGHT: f32 = 0.6;
 /// Brightness of the fill light of [`light_rig`].
@@ -207,7 +225,7 @@ pub const FILL_LIGHT: f32 = 0.2;
 /// Ambient term of a mesh scene, so that what neither light reaches is not pure black.
 pub const MESH_AMBIENT: f32 = 0.05;
 
-/// The lights of a mesh scene, which has none of its own: a white key light where
+/// The lights of a mesh scene that has no emitters: a white key light where
 /// `raypack bench` puts its shadow rays' light (halfway between the eye and whatever is
 /// above it, RAYS.md and `rayset::standard::default_light`), so the image shows the
 /// shadows the benchmark traces, and a dim fill light at the eye, so that surfaces in
@@ -313,7 +331,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::warn(&warnings);
     args.camera.apply(&mut scene.camera)?;
     if args.integrator != IntegratorArg::Whitted {
-        return run_gi(scene, &args, &options);
+        return run_gi(scene, source, &args, &options);
     }
     apply_overrides(&mut scene, &args, args.spp)?;
     let (threads, pool) = worker_pool(args.threads)?;
@@ -322,7 +340,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let accel = pool.install(|| KdTree::build(&scene.geometry));
     let build_seconds = start.elapsed().as_secs_f64();
     if let Source::Mesh = source {
-        scene.lights = light_rig(&scene, &accel)?;
+        let emitters = emitter_lights(&scene, EMITTER_SAMPLES, MAX_EMITTER_LIGHTS);
+        if emitters.left_out > 0 {
+            eprintln!(
+                "raypack: warning: {}: lit by its {} brightest emissive triangles; the {} dimmer ones are left out of the Whitted tracer's lights (--integrator path takes them all)",
+                args.scene,
+                emitters.lights.len(),
+                emitters.left_out
+            );
+        }
+        scene.lights = if emitters.lights.is_empty() {
+            light_rig(&scene, &accel)?
+        } else {
+            emitters.lights
+        };
         scene.settings.ambient = MESH_AMBIENT;
     }
     if scene.lights.is_empty() && scene.settings.ambient == 0.0 {
@@ -333,14 +364,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let s = &scene.settings;
-    let bar = tile_bar(s.width, s.height)?;
+    let bar = Progress::new(s.width, s.height)?;
     let start = Instant::now();
-    let rendered = pool.install(|| render(&scene, &accel, args.mode, &|| bar.inc(1)));
+    let rendered = pool.install(|| render(&scene, &accel, args.mode, &|| bar.inc()));
     let render_seconds = start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
+    bar.finish();
 
     let c = &rendered.counts;
-    print!(
+    out!(
         "{}",
         summary(
             &args.scene,
@@ -370,8 +401,18 @@ fn finish(args: &Args, report: &Report, film: &Film, options: &WriteOptions) -> 
     if let Some(path) = &args.json {
         super::write_json(path, report)?;
     }
+    if ImageFormat::from_path(&args.output) == Some(ImageFormat::Png)
+        && args.exposure.is_none()
+        && let Some(ev) = film.exposure_hint()
+    {
+        eprintln!(
+            "raypack: warning: {} is dark: its brightest pixels reach {:.3} of white; render it with --exposure {ev} to brighten it (or write .pfm or .exr to keep linear radiance)",
+            args.output.display(),
+            film.bright_end()
+        );
+    }
     film.write_with(&args.output, options)?;
-    println!("wrote      {}", args.output.display());
+    outln!("wrote      {}", args.output.display());
     Ok(())
 }
 
@@ -396,12 +437,29 @@ fn routing(integrator: IntegratorArg, mode: Mode, c: &GiCounts) -> String {
 
 /// Renders with the path tracer or the photon mapper: any `--spp`, the sky, and a
 /// summary with rays by kind, rays/s and, for photons, the map's build and lookup times.
-fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Result<()> {
+fn run_gi(
+    mut scene: Scene,
+    source: Source,
+    args: &Args,
+    options: &WriteOptions,
+) -> anyhow::Result<()> {
     let spp = args.spp.unwrap_or(16);
-    if spp == 0 {
-        return Err(BadInput("--spp must be at least 1".into()).into());
+    if !(1..=MAX_GI_SPP).contains(&spp) {
+        return Err(BadInput(format!(
+            "--spp {spp}: the path and photon integrators take 1 to {MAX_GI_SPP} samples per pixel"
+        ))
+        .into());
     }
+    let emits = (0..scene.geometry.prim_count()).any(|p| scene.material(p).emission != Vec3::ZERO);
     let environment = match args.sky.as_deref() {
+        // A bare mesh has no light of its own: a uniform white sky shows its shape.
+        None if matches!(source, Source::Mesh) && !emits => {
+            eprintln!(
+                "raypack: note: {} has no emissive material; it is lit by a uniform sky of radiance 1 (--sky R,G,B sets another)",
+                args.scene
+            );
+            Vec3::ONE
+        }
         None => scene.settings.background,
         Some([v]) => Vec3::splat(*v),
         Some([r, g, b]) => Vec3::new(*r, *g, *b),
@@ -421,19 +479,19 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
     let gi = GiScene::new(&scene, &accel, environment, args.max_bounces);
     if gi.lights.photon_power() <= 0.0 && gi.lights.is_empty() {
         eprintln!(
-            "raypack: warning: {}: nothing emits light (no emissive material, light or sky): the image is black",
+            "raypack: warning: {}: nothing emits light (no emissive material, light or sky): the image is black; --sky 1 lights it by a uniform white sky",
             args.scene
         );
     }
     let s = &scene.settings;
-    let bar = tile_bar(s.width, s.height)?;
+    let bar = Progress::new(s.width, s.height)?;
     let mut photon_lines = String::new();
     let mut excluded = 0.0;
     let start = Instant::now();
     let rendered = match args.integrator {
         IntegratorArg::Path => {
             let tracer = PathTracer { scene: gi };
-            pool.install(|| render_gi(&scene, &tracer, spp, args.mode, &|| bar.inc(1)))
+            pool.install(|| render_gi(&scene, &tracer, spp, args.mode, &|| bar.inc()))
         }
         _ => {
             let settings = PhotonSettings {
@@ -464,20 +522,20 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
                 lookup * 1e6,
                 settings.k,
             );
-            let mut r = pool.install(|| render_gi(&scene, &mapper, spp, args.mode, &|| bar.inc(1)));
+            let mut r = pool.install(|| render_gi(&scene, &mapper, spp, args.mode, &|| bar.inc()));
             r.counts.photon = st.rays;
             r
         }
     };
     let render_seconds = start.elapsed().as_secs_f64() - excluded;
-    bar.finish_and_clear();
+    bar.finish();
     let c = &rendered.counts;
     let name = match args.integrator {
         IntegratorArg::Path => "path tracing",
         _ => "photon mapping",
     };
-    print!(
-        "scene      {}: {}x{}, {name}, {spp} samples per pixel, {threads} threads\n\
+    out!(
+        "scene      {}: {}x{}, {name}, {} per pixel, {}\n\
          primitives {}\n\
          build      {build_seconds:.3} s (kd-tree)\n\
          {photon_lines}\
@@ -488,6 +546,8 @@ fn run_gi(mut scene: Scene, args: &Args, options: &WriteOptions) -> anyhow::Resu
         args.scene,
         s.width,
         s.height,
+        super::count(spp as usize, "sample"),
+        super::count(threads, "thread"),
         scene.geometry.prim_count(),
         c.total(),
         c.camera,
@@ -548,15 +608,59 @@ fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::ThreadPool)> {
     Ok((threads, pool))
 }
 
-/// The progress bar on stderr, one step per tile of a `width x height` image.
-fn tile_bar(width: u32, height: u32) -> anyhow::Result<ProgressBar> {
-    let bar = ProgressBar::new(tiles::tiles(width, height).len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}")
+/// The render's progress on stderr, one step per tile: a bar in a terminal, and
+/// otherwise (a log file, a CI job) a line every [`PROGRESS_LINE_SECONDS`], so a long
+/// render is never silent.
+struct Progress {
+    bar: ProgressBar,
+    /// Set when stderr is not a terminal: when the render started, and when the last
+    /// line was printed (milliseconds since the start).
+    lines: Option<(Instant, AtomicU64)>,
+}
+
+/// Seconds between the progress lines of a render whose stderr is not a terminal.
+const PROGRESS_LINE_SECONDS: u64 = 5;
+
+impl Progress {
+    fn new(width: u32, height: u32) -> anyhow::Result<Progress> {
+        let bar = ProgressBar::new(tiles::tiles(width, height).len() as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}",
+            )
             .context("progress bar template")?
             .progress_chars("=> "),
-    );
-    Ok(bar)
+        );
+        let lines = (!std::io::stderr().is_terminal()).then(|| (Instant::now(), AtomicU64::new(0)));
+        Ok(Progress { bar, lines })
+    }
+
+    /// One more tile done.
+    fn inc(&self) {
+        self.bar.inc(1);
+        let Some((start, last)) = &self.lines else {
+            return;
+        };
+        let now = start.elapsed().as_millis() as u64;
+        let prev = last.load(Ordering::Relaxed);
+        // One thread of the pool prints; the others see the new time and go on.
+        if now >= prev + PROGRESS_LINE_SECONDS * 1000
+            && last
+                .compare_exchange(prev, now, Ordering::Relaxed, Ordering::Relaxed)
+                .is_ok()
+        {
+            let (done, all) = (self.bar.position(), self.bar.length().unwrap_or(0));
+            eprintln!(
+                "raypack: {done}/{all} tiles ({:.0}%) in {:.0} s",
+                100.0 * done as f64 / all.max(1) as f64,
+                now as f64 / 1000.0
+            );
+        }
+    }
+
+    fn finish(&self) {
+        self.bar.finish();
+    }
 }
 
 /// Applies the command line's size, sampling and seed to the scene's settings. The size
@@ -610,7 +714,7 @@ fn summary(
     };
     let rays_per_second = c.total() as f64 / render_seconds.max(1e-9);
     format!(
-        "scene      {}: {}x{}, {sampling}, {threads} threads\n\
+        "scene      {}: {}x{}, {sampling}, {}\n\
          primitives {}\n\
          build      {build_seconds:.3} s (kd-tree)\n\
          render     {render_seconds:.3} s\n\
@@ -620,6 +724,7 @@ fn summary(
         scene_name,
         s.width,
         s.height,
+        super::count(threads, "thread"),
         scene.geometry.prim_count(),
         c.total(),
         c.primary,

@@ -19,12 +19,14 @@ pub struct Args {
     /// scalar: one ray at a time; packet4, packet8, packet16: 4, 8 or 16 rays per packet
     /// (in an image set a 2x2, 4x2 or 4x4 pixel block, elsewhere consecutive rays;
     /// packet, the default as in `render`: the widest this CPU runs);
-    /// tile64: 64 rays per tile. Every mode writes the same hits.
+    /// tile64: 64 rays per tile as SIMD groups sharing one walk; stream: one ray per SIMD
+    /// lane, each on its own walk (for incoherent rays). Every mode writes the same hits.
     #[arg(long, default_value = "packet")]
     pub mode: Mode,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::check_extension("-o", &args.output, "hits")?;
     super::check_output("-o", &args.output)?;
     let rays = rayset::read_rays(&args.rays)?;
     let scene = load_scene(&args.scene)?;
@@ -33,7 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let hits = rayset::trace::trace_hits(&accel, &rays, args.mode);
     let seconds = start.elapsed().as_secs_f64();
     rayset::write_hits(&args.output, &hits)?;
-    println!(
+    outln!(
         "{}: {} rays, {} hits ({} mode, build {:.3} s, trace {:.3} s), checksum {}",
         args.output.display(),
         rays.len(),

@@ -129,6 +129,31 @@ impl Film {
         self.pixels[y as usize * self.width as usize + x as usize] = c;
     }
 
+    /// The image's bright end: the 99th percentile of its pixels' largest channel (NaN
+    /// pixels count as black). A few hot pixels do not lift it, a lit scene reaches
+    /// about 1.
+    pub fn bright_end(&self) -> f32 {
+        let mut v: Vec<f32> = self
+            .pixels
+            .iter()
+            .map(|c| c.max_element())
+            .map(|m| if m.is_nan() { 0.0 } else { m })
+            .collect();
+        if v.is_empty() {
+            return 0.0;
+        }
+        let k = (v.len() - 1) * 99 / 100;
+        *v.select_nth_unstable_by(k, f32::total_cmp).1
+    }
+
+    /// The whole `--exposure` (EV) that brings a dark image's [`Film::bright_end`] to
+    /// between 0.5 and 1 of white, when it sits below a quarter of white; `None` for an
+    /// image bright enough, or black (nothing to expose).
+    pub fn exposure_hint(&self) -> Option<f32> {
+        let bright = self.bright_end();
+        (bright > 0.0 && bright < 0.25).then(|| (1.0 / bright).log2().floor())
+    }
+
     /// 8-bit sRGB, row-major from the top, 3 bytes per pixel, after scaling by
     /// `2^exposure` (exposure 0 multiplies by exactly 1).
     pub fn to_srgb8(&self, exposure: f32) -> Vec<u8> {
@@ -308,6 +333,29 @@ impl Film {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_dark_image_is_told_the_exposure_that_brightens_it() {
+        let mut film = super::Film::new(10, 10);
+        assert_eq!(film.exposure_hint(), None, "black: nothing to expose");
+        for (i, p) in film.pixels.iter_mut().enumerate() {
+            *p = glam::Vec3::splat(0.001 * i as f32);
+        }
+        // 99th percentile of 0.000 .. 0.099 is 0.098: EV 3 brings it to 0.784.
+        assert!(
+            (film.bright_end() - 0.098).abs() < 1e-6,
+            "{}",
+            film.bright_end()
+        );
+        assert_eq!(film.exposure_hint(), Some(3.0));
+        // One hot pixel does not hide the darkness.
+        film.pixels[0] = glam::Vec3::splat(50.0);
+        assert_eq!(film.exposure_hint(), Some(3.0));
+        for p in film.pixels.iter_mut() {
+            *p *= 8.0;
+        }
+        assert_eq!(film.exposure_hint(), None, "bright enough");
+    }
+
     use super::*;
 
     fn temp_dir(name: &str) -> PathBuf {

@@ -144,18 +144,27 @@ impl Lights {
                     edge_v,
                     color,
                     ..
+                }
+                | Light::Triangle {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    color,
+                    ..
                 } => {
+                    let two_sided = matches!(light, Light::Area { .. });
                     let cross = edge_u.cross(edge_v);
-                    let area = cross.length();
+                    let length = cross.length();
+                    let area = if two_sided { length } else { 0.5 * length };
                     if area > 0.0 && area.is_finite() {
                         emitters.push(Emitter::Patch(Patch {
                             corner,
                             edge_u,
                             edge_v,
-                            normal: cross / area,
+                            normal: cross / length,
                             area,
                             radiance: color,
-                            two_sided: true,
+                            two_sided,
                         }));
                     }
                 }

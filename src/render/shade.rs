@@ -371,7 +371,7 @@ impl<'a> Shader<'a> {
             for (k, light) in self.scene.lights.iter().enumerate() {
                 let count = match light {
                     Light::Point { .. } => 1,
-                    Light::Area { samples, .. } => scaled_count(*samples, at.budget),
+                    _ => scaled_count(light.samples(), at.budget),
                 };
                 let (mut diffuse, mut specular, mut visible) = (0.0f32, 0.0f32, 0u32);
                 let mut lit = |shadow: &Ray, n_dot_l: f32| {
@@ -397,12 +397,17 @@ impl<'a> Shader<'a> {
                     for i in 0..count {
                         let target = match light {
                             Light::Point { position, .. } => *position,
-                            Light::Area { .. } => {
+                            _ => {
                                 let (u, v) =
                                     stratified(i, path.rng.next_f32(), path.rng.next_f32());
                                 light.point_at(u, v)
                             }
                         };
+                        // Drawn all the same, so the numbers that follow do not depend
+                        // on which side of a one-sided light the point is.
+                        if !light.faces(origin) {
+                            continue;
+                        }
                         let Some((shadow, n_dot_l)) = shadow_ray(origin, s.ns, target) else {
                             continue;
                         };

@@ -340,25 +340,39 @@ impl std::error::Error for DecodeError {}
 /// return these beside what they built; the CLI prints each once on stderr.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Warning {
-    /// Zero-area triangles of an OBJ file: they keep their prim ids but no ray hits
+    /// Degenerate triangles of an OBJ file: they keep their prim ids but no ray hits
     /// them, and the kd-tree leaves them out.
     DegenerateTriangles {
         /// The OBJ file.
         path: PathBuf,
-        /// How many triangles have zero area.
+        /// How many triangles are degenerate.
         count: u32,
+        /// How many of them have finite corners but an area that overflows `f32` (the
+        /// rest have zero area).
+        overflow: u32,
     },
 }
 
 impl std::fmt::Display for Warning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Warning::DegenerateTriangles { path, count } => write!(
-                f,
-                "{}: {count} degenerate (zero-area) triangle{} skipped",
-                path.display(),
-                if *count == 1 { "" } else { "s" }
-            ),
+            Warning::DegenerateTriangles {
+                path,
+                count,
+                overflow,
+            } => {
+                let s = if *count == 1 { "" } else { "s" };
+                let why = match (*count - *overflow, *overflow) {
+                    (_, 0) => "zero-area".to_string(),
+                    (0, _) => "area overflows f32: coordinates too large".to_string(),
+                    (zero, over) => format!("{zero} of zero area, {over} whose area overflows f32"),
+                };
+                write!(
+                    f,
+                    "{}: {count} degenerate ({why}) triangle{s} skipped",
+                    path.display()
+                )
+            }
         }
     }
 }

@@ -11,7 +11,8 @@
 //!   file's second and third corner.
 //! - `normals` is parallel to `positions`; `uvs` is parallel to `positions` or empty;
 //!   `tri_material` is parallel to `triangles`.
-//! - Degenerate (zero-area) triangles keep their place and id; they are only counted.
+//! - Degenerate triangles (zero area, or an area that overflows `f32`) keep their place
+//!   and id; they are only counted.
 //!
 //! Vertex numbering is `tobj`'s, not the file's: `tobj` numbers the vertices of each
 //! object and group in order of first use and splits a position used with different
@@ -56,8 +57,12 @@ pub struct ObjMesh {
     pub materials: Vec<ObjMaterial>,
     /// Index into `materials` of each triangle, or `None` before any `usemtl`.
     pub tri_material: Vec<Option<u32>>,
-    /// Zero-area triangles (kept, with their ids; no ray hits them).
+    /// Degenerate triangles (kept, with their ids; no ray hits them): those of zero area
+    /// and those whose area overflows `f32`.
     pub degenerate_count: u32,
+    /// Of `degenerate_count`, the triangles whose corners are finite but so far apart
+    /// that their area (a cross product) overflows `f32`.
+    pub overflow_count: u32,
 }
 
 /// The part of an MTL material that raypack uses.
@@ -99,6 +104,7 @@ impl ObjMesh {
         (self.degenerate_count > 0).then(|| Warning::DegenerateTriangles {
             path: path.to_path_buf(),
             count: self.degenerate_count,
+            overflow: self.overflow_count,
         })
     }
 }
@@ -269,15 +275,13 @@ fn assemble(
     if !file_normals {
         mesh.normals = smooth_normals(&scan.positions, &scan.tri_pos, &file_index);
     }
-    mesh.degenerate_count = mesh
-        .triangles
-        .iter()
-        .filter(|t| {
-            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-            let n = (b - a).cross(c - a);
-            n == Vec3::ZERO || !n.is_finite()
-        })
-        .count() as u32;
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let n = (b - a).cross(c - a);
+        let overflow = !n.is_finite();
+        mesh.degenerate_count += (overflow || n == Vec3::ZERO) as u32;
+        mesh.overflow_count += overflow as u32;
+    }
     Ok(mesh)
 }
 
