@@ -25,6 +25,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("accel", 3),
     ("render", 4),
     ("rayset", 4),
+    ("prelude", 5),
     ("cli", 5),
 ];
 

@@ -25,6 +25,12 @@ use triaccel::TriAccel;
 
 /// An intersector over one scene's primitives.
 ///
+/// A miss is `None` where one ray gets one answer ([`Accel::intersect`]), and
+/// [`Hit::MISS`] (`t = +inf`, `prim = NO_HIT`) where answers fill a slice or the lanes of
+/// a [`HitPacket`] (packets, tiles, streams, batches): a slice of plain `Hit` records is
+/// what the kernels write in place, 16 bytes a ray, and what a caller hands on to other
+/// code without unwrapping. [`Hit::is_hit`] tells the two apart.
+///
 /// Numeric edge cases have one defined answer in every intersector and both paths: a
 /// ray with a NaN or infinite origin or direction component, a zero direction, a
 /// direction whose largest component lies outside [2^-64, 2^64] ([`crate::ray::DIR_MIN`]),
@@ -97,7 +103,43 @@ pub trait Accel: Sync {
     fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
         occluded_each(self, rays, occluded)
     }
+
+    /// Closest hits of any number of rays on every thread of the current rayon pool (the
+    /// global one, or the one a caller [`rayon::ThreadPool::install`]s): chunks of
+    /// [`BATCH_RAYS`] rays through [`Accel::intersect_stream`], misses as [`Hit::MISS`].
+    /// This is the call for tracing many rays; each answer is bit for bit
+    /// [`Accel::intersect`]'s, on any number of threads.
+    ///
+    /// Panics when `hits` and `rays` differ in length, as `copy_from_slice` does.
+    fn intersect_batch(&self, rays: &[Ray], hits: &mut [Hit]) {
+        use rayon::prelude::*;
+        assert_eq!(rays.len(), hits.len(), "intersect_batch: one hit per ray");
+        rays.par_chunks(BATCH_RAYS)
+            .zip(hits.par_chunks_mut(BATCH_RAYS))
+            .for_each(|(rays, hits)| self.intersect_stream(rays, hits));
+    }
+
+    /// Any-hit answers of any number of rays on every thread of the current rayon pool:
+    /// [`Accel::intersect_batch`] for [`Accel::occluded_stream`].
+    ///
+    /// Panics when `occluded` and `rays` differ in length.
+    fn occluded_batch(&self, rays: &[Ray], occluded: &mut [bool]) {
+        use rayon::prelude::*;
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_batch: one answer per ray"
+        );
+        rays.par_chunks(BATCH_RAYS)
+            .zip(occluded.par_chunks_mut(BATCH_RAYS))
+            .for_each(|(rays, occluded)| self.occluded_stream(rays, occluded));
+    }
 }
+
+/// Rays per task of [`Accel::intersect_batch`] and [`Accel::occluded_batch`]: enough for
+/// the stream kernel to keep its lanes full and the task overhead small, few enough that
+/// two threads share a 64K-ray batch evenly.
+pub const BATCH_RAYS: usize = 4096;
 
 /// The stream queries' default, and the reference they are tested against: closest hits
 /// of `rays` one ray at a time through [`Accel::intersect`], misses as [`Hit::MISS`].
@@ -503,5 +545,55 @@ impl Prims {
                 .planes
                 .iter()
                 .any(|p| prims::intersect_plane(p, ray, ray.t_max).is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Accel;
+    use crate::accel::kdtree::KdTree;
+    use crate::ray::{Hit, Ray};
+    use crate::rng::Pcg32;
+    use crate::scene::generate::random_soup;
+    use glam::Vec3;
+
+    /// The batch queries give [`Accel::intersect`]'s and [`Accel::occluded`]'s answers in
+    /// input order, for lengths around the chunk size and on one to three threads.
+    #[test]
+    fn batches_answer_as_single_rays_do_on_any_thread_count() {
+        let tree = KdTree::build(&random_soup(300, 0.3, 5));
+        let mut rng = Pcg32::new(11, 3);
+        let mut v = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        let rays: Vec<Ray> = (0..2 * super::BATCH_RAYS + 17)
+            .map(|_| Ray::new(v() * 2.0, v().normalize_or(Vec3::Y), 0.0, f32::INFINITY))
+            .collect();
+        let want: Vec<Hit> = rays
+            .iter()
+            .map(|r| tree.intersect(r).unwrap_or(Hit::MISS))
+            .collect();
+        assert!(want.iter().any(|h| h.is_hit()) && want.iter().any(|h| !h.is_hit()));
+        let key = |h: &Hit| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits());
+        for threads in 1..=3 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            for n in [0, 1, super::BATCH_RAYS, rays.len()] {
+                let mut hits = vec![Hit::MISS; n];
+                let mut blocked = vec![false; n];
+                pool.install(|| {
+                    tree.intersect_batch(&rays[..n], &mut hits);
+                    tree.occluded_batch(&rays[..n], &mut blocked);
+                });
+                for i in 0..n {
+                    assert_eq!(
+                        key(&hits[i]),
+                        key(&want[i]),
+                        "ray {i} of {n}, {threads} threads"
+                    );
+                    assert_eq!(blocked[i], tree.occluded(&rays[i]), "ray {i} of {n}");
+                }
+            }
+        }
     }
 }

@@ -92,6 +92,18 @@ pub fn emission_of(ke: Option<Vec3>, ka: Option<Vec3>) -> Vec3 {
     }
 }
 
+impl From<ObjMesh> for super::Geometry {
+    /// The mesh's positions and triangles, for the accelerators (materials, normals and
+    /// UVs are the renderer's: [`super::Scene::from_obj`] keeps them).
+    fn from(mesh: ObjMesh) -> super::Geometry {
+        super::Geometry {
+            vertices: mesh.positions,
+            triangles: mesh.triangles,
+            ..Default::default()
+        }
+    }
+}
+
 impl ObjMesh {
     /// Number of triangles, i.e. of prim ids.
     pub fn triangle_count(&self) -> u32 {
