@@ -46,16 +46,16 @@
 //!
 //! Data flows one way through the modules, and imports point only down this list:
 //! - `cli` (the `raypack` binary, `src/cli`): the commands, which reach the library as
-//!   `raypack::`;
+//!   `raypack::`, and [`prelude`]: the names a program that traces rays needs;
 //! - [`render`] (shading, sampling, tiles, the film) and, beside it, [`rayset`] (the
 //!   RAYS.md files, the standard ray sets, the benchmark kernel); neither imports the
 //!   other;
 //! - [`accel`]: the intersection interface, brute force (the oracle), TriAccel and the
-//!   kd-tree with scalar and packet traversal;
-//! - [`scene`]: geometry, materials, lights, camera, textures, TOML and OBJ loading,
-//!   scenes by name;
+//!   kd-tree with scalar and packet traversal; and, beside it, [`scene`]: materials,
+//!   lights, camera, textures, TOML and OBJ loading, scenes by name. Neither imports the
+//!   other, so the accelerators build and test without the loaders;
+//! - [`geom`]: the primitives and bounds both of them share;
 //! - [`ray`]: the ray and hit records every layer passes around;
-//! - [`prelude`], on top of the library: the names a program that traces rays needs;
 //! - at the bottom, used by any layer: [`simd`] (the one place that sets the packet
 //!   width), [`rng`] (the random number generators), [`onb`] (the orthonormal basis) and
 //!   [`output`] (the atomic file writer).
@@ -70,6 +70,7 @@
 
 #[warn(missing_docs)]
 pub mod accel;
+pub mod geom;
 pub mod onb;
 pub mod output;
 pub mod prelude;

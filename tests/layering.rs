@@ -21,7 +21,9 @@ const LAYERS: &[(&str, u32)] = &[
     ("onb", 0),
     ("simd", 0),
     ("ray", 1),
-    ("scene", 2),
+    ("geom", 2),
+    // Siblings: the accelerators know geometry, never materials, cameras or loaders.
+    ("scene", 3),
     ("accel", 3),
     ("render", 4),
     ("rayset", 4),

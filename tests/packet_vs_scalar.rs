@@ -533,7 +533,7 @@ fn block_packets<W: Simd>(
         .into_iter()
         .filter(|&(x, y)| x + bw <= width && y + bh <= height)
         .step_by(stride)
-        .map(|(x, y)| RayPacket::<W>::camera_block(&frame, x, y))
+        .map(|(x, y)| frame.block_rays::<W>(x, y))
         .collect()
 }
 
@@ -657,7 +657,7 @@ fn check_tree_scene_at<W: PacketWidth>(
         let frame = camera.frame(128, 96);
         let camera_rays: Vec<Ray> = common::quad_corners(128, 96)
             .into_iter()
-            .flat_map(|(x, y)| RayPacket::<W4>::camera_block(&frame, x, y))
+            .flat_map(|(x, y)| frame.block_rays::<W4>(x, y))
             .collect();
         assert_tiles_match::<W>(&tree, &camera_rays, &format!("{what}, camera"));
         assert_tiles_match::<W>(&tree, &random, &format!("{what}, random"));

@@ -2,8 +2,8 @@
 //! reference that the kd-tree and packet paths are tested against.
 
 use super::{Accel, Prims};
+use crate::geom::{Aabb, Geometry};
 use crate::ray::{Hit, Ray};
-use crate::scene::{Aabb, Geometry};
 
 /// Tests every primitive for every ray: the accelerator the kd-tree must agree with.
 pub struct BruteForce {

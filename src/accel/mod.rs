@@ -16,8 +16,8 @@ pub mod triaccel_leaf;
 pub mod triaccel_packet;
 pub mod watertight;
 
+use crate::geom::{Aabb, Geometry, Plane, Sphere};
 use crate::ray::{Hit, Ray};
-use crate::scene::{Aabb, Geometry, Plane, Sphere};
 use crate::simd::{LaneBits, Simd, W4, W8, W16, native_lanes};
 use glam::Vec3;
 pub use packet::{HitPacket, RayPacket};

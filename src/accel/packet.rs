@@ -2,10 +2,7 @@
 //! per lane (Wald 2004, chapter 6), at any width `W` of [`crate::simd`].
 
 use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
-use crate::scene::CameraFrame;
-use crate::simd::{
-    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, block_pixel, max_abs,
-};
+use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, max_abs};
 use glam::Vec3;
 
 /// `W::LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel:
@@ -119,18 +116,6 @@ impl<W: Simd> RayPacket<W> {
         let mut p = RayPacket::from_rays(&filled[..W::LANES]);
         p.active = Mask::<W>::from_bits(live);
         p
-    }
-
-    /// The camera rays of the `W::SHAPE` pixel block whose top-left pixel is `(x, y)`,
-    /// lane `i` through the centre of pixel `(x, y) + block_pixel(i)`: for 4 lanes
-    /// RAYS.md's quad, `(x, y)`, `(x + 1, y)`, `(x, y + 1)`, `(x + 1, y + 1)`.
-    pub fn camera_block(frame: &CameraFrame, x: u32, y: u32) -> Vec<Ray> {
-        (0..W::LANES)
-            .map(|i| {
-                let (dx, dy) = block_pixel::<W>(i);
-                frame.ray((x + dx) as f32 + 0.5, (y + dy) as f32 + 0.5)
-            })
-            .collect()
     }
 
     /// Lanes that can hit anything; the twin of [`Ray::is_usable`] (finite origin and

@@ -1,8 +1,8 @@
 //! Scalar intersection tests for spheres, boxes and planes. Their packet twins are in
 //! [`crate::accel::prims_packet`] and follow the same operation order.
 
+use crate::geom::{Aabb, Plane, Sphere};
 use crate::ray::Ray;
-use crate::scene::{Aabb, Plane, Sphere};
 
 /// Nearest `t` in `(t_min, t_max)` where `ray` meets the sphere's surface. A ray that
 /// starts inside gets the exit point.

@@ -7,7 +7,7 @@
 
 use super::Prims;
 use super::packet::{HitPacket, LaneHits, RayPacket};
-use crate::scene::{Aabb, Plane, Sphere};
+use crate::geom::{Aabb, Plane, Sphere};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf};
 
 /// `a . b` in glam's order: `(x + y) + z`.

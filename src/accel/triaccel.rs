@@ -52,8 +52,8 @@
 // The packet twin names the axes through this module too.
 use super::axis::MOD3;
 use super::watertight;
+use crate::geom::Geometry;
 use crate::ray::Ray;
-use crate::scene::Geometry;
 use glam::{DVec3, Vec3};
 
 /// Unit roundoff of f32.

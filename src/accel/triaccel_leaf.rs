@@ -89,7 +89,7 @@ impl Prims {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Geometry;
+    use crate::geom::Geometry;
     use crate::scene::generate::{Rng, random_soup};
     use crate::simd::{W4, W8, W16};
     use glam::Vec3;
@@ -223,18 +223,18 @@ mod tests {
     #[test]
     fn triangles_only_means_no_sphere_or_box() {
         let mut g = geometry();
-        g.planes.push(crate::scene::Plane {
+        g.planes.push(crate::geom::Plane {
             normal: Vec3::Y,
             offset: 0.0,
         });
         assert!(Prims::new(&g).triangles_only());
         let mut with_sphere = g.clone();
-        with_sphere.spheres.push(crate::scene::Sphere {
+        with_sphere.spheres.push(crate::geom::Sphere {
             center: Vec3::ZERO,
             radius: 1.0,
         });
         assert!(!Prims::new(&with_sphere).triangles_only());
-        g.boxes.push(crate::scene::Aabb::new(Vec3::ZERO, Vec3::ONE));
+        g.boxes.push(crate::geom::Aabb::new(Vec3::ZERO, Vec3::ONE));
         assert!(!Prims::new(&g).triangles_only());
     }
 }

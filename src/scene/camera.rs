@@ -1,6 +1,7 @@
 //! The look-at pinhole camera, with exactly the convention of RAYS.md.
 
 use crate::ray::Ray;
+use crate::simd::{Simd, block_pixel};
 use glam::{DVec3, Vec3};
 
 /// A pinhole camera at `eye` looking at `target`, as a scene file or a benchmark's
@@ -95,6 +96,19 @@ impl Camera {
 }
 
 impl CameraFrame {
+    /// The camera rays of the `W::SHAPE` pixel block whose top-left pixel is `(x, y)`,
+    /// ray `i` (a packet's lane `i`) through the centre of pixel `(x, y) +
+    /// block_pixel(i)`: for 4 lanes RAYS.md's quad, `(x, y)`, `(x + 1, y)`, `(x, y + 1)`,
+    /// `(x + 1, y + 1)`.
+    pub fn block_rays<W: Simd>(&self, x: u32, y: u32) -> Vec<Ray> {
+        (0..W::LANES)
+            .map(|i| {
+                let (dx, dy) = block_pixel::<W>(i);
+                self.ray((x + dx) as f32 + 0.5, (y + dy) as f32 + 0.5)
+            })
+            .collect()
+    }
+
     /// The ray through film position `(x, y)` in pixels (pixel `(i, j)`'s centre is
     /// `(i + 0.5, j + 0.5)`; y = 0 is the top row).
     #[inline]

@@ -8,16 +8,15 @@ pub mod catalog;
 pub mod error;
 pub mod file;
 pub mod generate;
-pub mod geometry;
 pub mod light;
 pub mod material;
 pub mod obj;
 pub mod spd;
 pub mod texture;
 
+pub use crate::geom::{Aabb, Geometry, Plane, PrimRef, Sphere, scene_box};
 pub use camera::{Camera, CameraFrame, View};
 pub use error::{DecodeError, ObjError, SceneError, TextureError, Warning};
-pub use geometry::{Aabb, Geometry, Plane, PrimRef, Sphere, scene_box};
 pub use light::Light;
 pub use material::Material;
 pub use texture::Texture;

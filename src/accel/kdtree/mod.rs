@@ -24,7 +24,7 @@ pub mod traverse_stream;
 pub mod traverse_tile;
 
 use super::Prims;
-use crate::scene::Aabb;
+use crate::geom::Aabb;
 pub use build::{BuildParams, BuildStats, BuilderKind};
 use node::{AlignedNodes, KdNode};
 

@@ -600,7 +600,7 @@ mod tests {
     /// Random rays from inside and around the box, rays on its faces and corners,
     /// axis-parallel rays with signed zeros, subnormal and tiny direction components,
     /// unusable rays and cut intervals.
-    fn rays(b: &crate::scene::Aabb, rng: &mut Rng) -> Vec<Ray> {
+    fn rays(b: &crate::geom::Aabb, rng: &mut Rng) -> Vec<Ray> {
         let (lo, hi) = (b.min - b.extent(), b.max + b.extent());
         let mut out = Vec::new();
         for i in 0..400 {
@@ -632,7 +632,7 @@ mod tests {
     /// Rays that start together, as a stream's neighbours do: blocks from one point
     /// (inside the box, on its corner, outside it) in every direction, and blocks from
     /// nearby points in nearby directions, some of them axis-parallel with signed zeros.
-    fn neighbours(b: &crate::scene::Aabb, rng: &mut Rng) -> Vec<Ray> {
+    fn neighbours(b: &crate::geom::Aabb, rng: &mut Rng) -> Vec<Ray> {
         let mut out = Vec::new();
         for (j, o) in [
             (b.min + b.max) * 0.5,

@@ -30,8 +30,8 @@ use super::KdTree;
 use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack};
 use crate::accel::packet::{HitPacket, RayPacket};
+use crate::geom::Aabb;
 use crate::ray::Hit;
-use crate::scene::Aabb;
 use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, max_abs, prefetch};
 use std::cell::Cell;
 

@@ -27,7 +27,7 @@ use super::{
     refs_bounds, tree_bounds,
 };
 use crate::accel::Prims;
-use crate::scene::{Aabb, Geometry};
+use crate::geom::{Aabb, Geometry};
 use glam::Vec3;
 use rayon::prelude::*;
 use wide::{f32x4, i32x4};

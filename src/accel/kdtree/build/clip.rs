@@ -7,7 +7,7 @@
 //! ulps where clipping rounded, so a primitive is never left out of a cell it touches.
 
 use super::child_cells;
-use crate::scene::Aabb;
+use crate::geom::Aabb;
 use glam::{Vec3, Vec3A};
 
 pub(super) fn intersect_boxes(a: &Aabb, b: &Aabb) -> Aabb {

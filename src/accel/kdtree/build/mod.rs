@@ -33,7 +33,7 @@ mod sweep;
 use super::KdTree;
 use super::node::{KdNode, MAX_CHILD, MAX_INDEX};
 use crate::accel::Prims;
-use crate::scene::{Aabb, Geometry, PrimRef};
+use crate::geom::{Aabb, Geometry, PrimRef};
 use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
 use glam::Vec3;
 use std::time::Instant;

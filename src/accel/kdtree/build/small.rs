@@ -17,7 +17,7 @@
 //! the cell first, and cheaper.
 
 use super::{Builder, Out, PlaneCost, child_cells, cut_bounds, from_order_bits, order_bits};
-use crate::scene::Aabb;
+use crate::geom::Aabb;
 
 /// Most references a small node holds.
 pub(super) const SMALL: usize = 48;

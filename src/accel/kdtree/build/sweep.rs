@@ -22,7 +22,7 @@ use super::{
     order_bits,
 };
 use crate::accel::kdtree::node::MAX_INDEX;
-use crate::scene::Aabb;
+use crate::geom::Aabb;
 
 const END: u64 = 0;
 const PLANAR: u64 = 1;

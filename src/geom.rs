@@ -1,4 +1,5 @@
-//! Primitives as the accelerators see them: flat arrays, one `u32` id per primitive.
+//! geom: primitives as the accelerators see them, flat arrays with one `u32` id per
+//! primitive, below both the accelerators and the scene loaders (which fill them).
 //!
 //! Ids run over triangles first, then spheres, boxes and planes, so a triangle's id is
 //! its index in OBJ face order (RAYS.md) and a kd-tree leaf can hold any of the first
