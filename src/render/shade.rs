@@ -2,7 +2,8 @@
 //!
 //! One ray at a time through any [`Accel`] (Bikker, "Raytracing: Theory &
 //! Implementation", parts 1-6). At a hit:
-//! - an ambient term `ambient * albedo * diffuse`;
+//! - an ambient term `ambient * albedo * diffuse`, and the material's `emission` when the
+//!   ray meets the emitting (front) side;
 //! - per light and per light sample: a shadow ray (any-hit, [`Accel::occluded`]) and, when
 //!   it is unblocked, the diffuse term `diffuse * max(0, N.L) * albedo` and the Phong term
 //!   `specular * max(0, R.V)^shininess`. Each sample carries its own visibility into both
@@ -364,6 +365,11 @@ impl<'a> Shader<'a> {
         let m = s.material;
         let settings = &self.scene.settings;
         let mut colour = s.albedo * (settings.ambient * m.diffuse);
+        if !s.inside {
+            // An emitter shows its own light, one-sided as it emits, so a mesh lit by
+            // its emitters shows where the light comes from.
+            colour += m.emission;
+        }
         let mut light_bits = 0u64;
 
         if let Some(origin) = shadow_origin(&s, epsilon) {
