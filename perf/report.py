@@ -536,8 +536,9 @@ def section_build(builds, have_embree, cfg, quick_flag):
         if have_embree:
             line += [secs(b.get("embree_high_1")), secs(b.get("embree_high_2")),
                      secs(b.get("embree_medium_2"))]
-        mib = b["bytes"] / 2**20
-        line += [f"{b['nodes']:,}", f"{mib:.2f} MiB ({b['bytes'] / max(b['triangles'], 1):.1f} B/tri)",
+        size = (f"{b['bytes'] / 2**20:.2f} MiB" if b["bytes"] >= 2**20
+                else f"{b['bytes'] / 2**10:.2f} KiB")
+        line += [f"{b['nodes']:,}", f"{size} ({b['bytes'] / max(b['triangles'], 1):.1f} B/tri)",
                  f"{b['sah']:.2f}"]
         body.append(line)
     out += [table(header, body, ["l"] + ["r"] * (len(header) - 1)), ""]
@@ -569,10 +570,12 @@ def section_gi(gi, quick_flag):
             "an `area` emitter. "
             f"{plural(c['rounds'], 'round')}, the two renderers taking turns; time is the render "
             "alone (scene loading and acceleration structure excluded; Mitsuba's after a "
-            "warm-up render that compiles its kernels), median over rounds. MSE is "
-            "against a Mitsuba reference of "
-            f"{c['reference_spp']:,} samples per pixel (mean over pixels and channels of "
-            "linear radiance, median over rounds); efficiency is 1 / (time x MSE).")
+            "warm-up render that compiles its kernels), median over rounds; round k uses "
+            "seed k in both, so the images, and the MSE, repeat from run to run. MSE is "
+            f"against a Mitsuba reference of {c['reference_spp']:,} samples per pixel (made "
+            "once by the same script and kept in its cache folder, outside the repository; "
+            "mean over pixels and channels of linear radiance, median over rounds); "
+            "efficiency is 1 / (time x MSE).")
         out.append("")
         header = ["renderer", "time", "MSE", "efficiency", "mean R, G, B (reference: "
                   + ", ".join(f"{x:.4f}" for x in gi["reference_means"]) + ")"]
