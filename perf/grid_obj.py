@@ -1,5 +1,5 @@
 """Writes an n x n grid of squares (two triangles each, v and f lines only) as OBJ, for
-the large-file figures of perf/README.md: python3 perf/grid_obj.py N OUT.obj"""
+the large-file figures of perf/log/overview.md: python3 perf/grid_obj.py N OUT.obj"""
 
 import sys
 n = int(sys.argv[1]); out = sys.argv[2]

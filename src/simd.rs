@@ -222,7 +222,7 @@ pub trait Uint:
     /// independent, so a lane walk's node loads are in flight together. The indices
     /// are read from memory (the lane walk keeps its nodes in an array): a scalar load
     /// per index, where taking each out of a vector cost two instructions per lane
-    /// (1.02-1.06x on every stream, perf/stream.md). Panics when an index is out of
+    /// (1.02-1.06x on every stream, perf/log/stream.md). Panics when an index is out of
     /// bounds.
     #[inline(always)]
     fn gather_pairs(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
@@ -622,7 +622,7 @@ width!(
 /// The native AVX-512 backend of [`W16`]: one `zmm` register per quantity and lane masks
 /// in `k` registers (`__mmask16`), so comparisons, mask logic, selects and the lane
 /// bits never leave them. `wide`'s f32x16 returns its comparisons as vectors, which
-/// costs a `vpmovm2d`/`vpmovd2m` pair around every mask (perf/wide.md). Every operation
+/// costs a `vpmovm2d`/`vpmovd2m` pair around every mask (perf/log/wide.md). Every operation
 /// repeats the one `wide` performs (same instruction, same operand order), so both
 /// backends and the scalar path give the same bits; a unit test compares them.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
@@ -1104,7 +1104,7 @@ pub fn native_lanes() -> usize {
 /// The largest absolute component per lane, `max_gt(max_gt(|x|, |y|), |z|)`: the twin
 /// of the scalar `accel::triaccel::max_abs`. The scalar twins of `min_lt`, `max_gt` and
 /// `max_abs` stay in triaccel.rs: moved here, they made the renderer 5-9% slower in
-/// paired runs (code placement; perf/README.md).
+/// paired runs (code placement; perf/log/overview.md).
 #[inline]
 pub fn max_abs<F: Float>(v: &[F; 3]) -> F {
     v[0].abs().max_gt(v[1].abs()).max_gt(v[2].abs())

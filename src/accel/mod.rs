@@ -372,7 +372,7 @@ impl<A: Accel + ?Sized> PacketTrace for A {
 /// Records are indexed by *slot*. Spheres, boxes and planes sit at their primitive id;
 /// a triangle's slot is its id until [`Prims::reorder_triangles`] places the records
 /// in the order a tree's leaves name them, so a leaf's triangles share cache lines
-/// (perf/wide.md, "Triangle records in leaf order"). Each record carries its
+/// (perf/log/wide.md, "Triangle records in leaf order"). Each record carries its
 /// triangle's id ([`TriAccel::id`]); hits report ids ([`Prims::id`]) and ties between
 /// equal distances go to the smaller id, so the answers do not depend on the order.
 #[derive(Clone, Debug, Default)]

@@ -47,7 +47,7 @@
 //! reports that rule's `t`, `u`, `v`: for a grazing ray the plane's `t` can put the hit
 //! point well outside the triangle (and outside its kd-tree cells), the rule's cannot.
 //!
-//! The cost in Mrays/s is recorded in perf/README.md, section "Watertightness".
+//! The cost in Mrays/s is recorded in perf/log/overview.md, section "Watertightness".
 
 // The packet twin names the axes through this module too.
 use super::axis::MOD3;

@@ -6,7 +6,7 @@
 //! used for each, and lanes within the bound of an edge run the scalar exact rule.
 //! The records are read a 16-byte row at a time and transposed ([`Float::from_rows4`])
 //! instead of field by field, lane by lane: 1.04x on the conference room's and the
-//! bunny's diffuse streams (perf/stream.md, "Fifteenth session").
+//! bunny's diffuse streams (perf/log/stream.md, "Fifteenth session").
 
 use super::Prims;
 use super::triaccel::{exact_rule, max_abs};
@@ -56,7 +56,7 @@ impl Prims {
             ((t - splat(limit0)) * ad).cmp_lt(slack) & ((splat(ray.t_min) - t) * ad).cmp_lt(slack);
         // No early return when no lane is in range: on a diffuse ray's leaves that
         // branch goes either way, and its misses cost more than the barycentrics
-        // (1.01x on the bunny, perf/stream.md).
+        // (1.01x on the bunny, perf/log/stream.md).
         let mut bits = keep.bits() & (W::all_bits() >> (W::LANES - n));
         let (u, v, edge, bound) =
             lanes.barycentrics(t, ad, reach, [b_nu, b_nv, b_d], [c_nu, c_nv, c_d], err);

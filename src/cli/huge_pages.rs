@@ -3,7 +3,7 @@
 //! 2 MiB boundaries and marked for transparent huge pages (`madvise(MADV_HUGEPAGE)`)
 //! before their first touch. Incoherent rays load nodes and records from all over
 //! several megabytes; on 4 KiB pages most of those loads also miss the TLB, on 2 MiB
-//! pages few do (perf/stream.md, "Huge pages"). Linux only; a hint the kernel may
+//! pages few do (perf/log/stream.md, "Huge pages"). Linux only; a hint the kernel may
 //! ignore (`/sys/kernel/mm/transparent_hugepage/enabled` set to `never`). The library
 //! leaves the choice of allocator to the program that links it.
 

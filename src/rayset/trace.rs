@@ -9,7 +9,7 @@
 //! [`crate::simd::block_pixel`]'s order: 4 and 8 consecutive rays already are such a
 //! block, 16 are gathered from two rows of quads (16 consecutive rays are an 8x2 strip,
 //! whose rays part ways sooner: a 4x4 block traces Sponza's camera rays 6% faster,
-//! perf/wide.md). A set that is not an image goes in packets of consecutive rays; lanes
+//! perf/log/wide.md). A set that is not an image goes in packets of consecutive rays; lanes
 //! past its end are inactive.
 //!
 //! The timed kernel of `raypack bench` is [`checksum_chunk`]: it converts the rays of a

@@ -49,16 +49,16 @@ const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 
 /// The lane walks (stream queries) test groups of at least this many triangles of a leaf in lanes
-/// (one triangle alone is faster scalar: perf/stream.md).
+/// (one triangle alone is faster scalar: perf/log/stream.md).
 pub const LEAF_LANES_MIN: u32 = 2;
 
-/// The width of those groups: 8 lanes (16 measured slower, perf/stream.md: a diffuse
+/// The width of those groups: 8 lanes (16 measured slower, perf/log/stream.md: a diffuse
 /// ray's leaves hold few triangles).
 type LeafLanes = W8;
 
 /// Leaves of at most 4 triangles (most of those a diffuse ray meets) are tested in 4
 /// lanes: loading half as many lanes' records paid 1.05x on Sponza's and the conference
-/// room's diffuse streams (perf/stream.md).
+/// room's diffuse streams (perf/log/stream.md).
 type SmallLeafLanes = W4;
 
 impl KdTree {
@@ -239,7 +239,7 @@ impl KdTree {
                 }
             } else {
                 bump(|c| c.prim_tests += count as u64);
-                // The lane walks test a leaf's triangles in lanes (perf/stream.md);
+                // The lane walks test a leaf's triangles in lanes (perf/log/stream.md);
                 // the scalar path keeps one test per primitive. In a scene of triangles
                 // alone no leaf needs its slots checked (a loop whose exit, at the
                 // leaf's size, the branch predictor misses: 1.03x on the bunny).

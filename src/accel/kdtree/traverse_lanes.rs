@@ -15,7 +15,7 @@
 //! them all, and each ray keeps its own interval and pushes. Neighbours in a stream
 //! usually start close together (bounces off nearby points, shadow rays from them, a
 //! camera's rays), and a third of a conference-room diffuse ray's steps come before
-//! its block's rays part (perf/stream.md, "Fourteenth session").
+//! its block's rays part (perf/log/stream.md, "Fourteenth session").
 //!
 //! Invariant, so each ray's answer is the scalar path's bit for bit: a lane repeats
 //! `KdTree::step` for its ray operation by operation (the band's ends at the split,
@@ -296,7 +296,7 @@ impl KdTree {
     /// `groups` (1 or 2) groups of lanes step in turn; with two, each group's next nodes
     /// are prefetched at the end of its step and load while the other group steps:
     /// twice the loads in flight, which pays in trees much larger than the cache
-    /// (perf/stream.md, "Two groups of lanes").
+    /// (perf/log/stream.md, "Two groups of lanes").
     pub(super) fn walk_lanes<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &[Ray],

@@ -1,9 +1,9 @@
 //! Stage: accel. The kd-tree's stream queries: a slice of rays in, a slice of answers
 //! out in input order, each ray's answer the scalar path's bit for bit. Incoherent rays
 //! (diffuse bounces) spend their time waiting on node loads that miss the cache
-//! (perf/README.md), so a stream is walked one ray per SIMD lane at the CPU's native
+//! (perf/log/overview.md), so a stream is walked one ray per SIMD lane at the CPU's native
 //! width ([`KdTree::intersect_lanes`], traverse_lanes.rs): every iteration has a load
-//! in flight for each lane and decides all inner steps without a branch. perf/stream.md
+//! in flight for each lane and decides all inner steps without a branch. perf/log/stream.md
 //! has the figures of each kernel tried.
 //!
 //! A tree small enough to stay in the cache has no load latency to hide: below
@@ -16,14 +16,14 @@ use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
 use crate::simd::{Simd, W4, W8, W16, native_lanes};
 
-/// Trees with fewer nodes answer streams ray by ray (perf/stream.md, "Small trees").
+/// Trees with fewer nodes answer streams ray by ray (perf/log/stream.md, "Small trees").
 pub const STREAM_MIN_NODES: usize = 8192;
 
 /// Trees with at least this many nodes walk closest-hit streams in two groups of lanes
 /// in turn, each prefetching its next nodes while the other steps: Sponza's diffuse
 /// set (828K nodes) 1.08x, the 1.3M-node tetra 1.24x, while the conference room (329K)
 /// and the bunny (264K), whose nodes stay closer in the cache, lose 1-3%
-/// (perf/stream.md, "Two groups of lanes").
+/// (perf/log/stream.md, "Two groups of lanes").
 pub const TWO_GROUPS_MIN_NODES: usize = 512 * 1024;
 
 /// [`TWO_GROUPS_MIN_NODES`] for any-hit streams, whose walks end sooner: Sponza's

@@ -17,7 +17,7 @@
 //! packet traversal's operations ([`super::traverse_packet`]), the tile going near only,
 //! far only or both as the union of the groups needs, with one stack of per-group lane
 //! masks and intervals. On Sponza's camera rays this takes a third of the node steps of
-//! 16-lane packets (perf/wide.md).
+//! 16-lane packets (perf/log/wide.md).
 //!
 //! Invariant, so each lane returns exactly the scalar path's answer: the descent takes
 //! only steps that every lane's own (scalar) decision takes too, near only or far only,

@@ -96,7 +96,7 @@ pub struct BuildParams {
     /// Cost of one traversal step (`K_T` in Wald & Havran, who use 15 with `K_I` = 20).
     /// The default is 30: on the benchmark scenes it halves the nodes and cuts the build
     /// by a quarter, and the packet path traces primary rays 5-9% faster in the smaller
-    /// tree while the scalar path loses about as much (perf/kdtree.md, "Cost constants").
+    /// tree while the scalar path loses about as much (perf/log/kdtree.md, "Cost constants").
     pub traversal_cost: f32,
     /// Cost of one primitive test (`K_I`).
     pub intersection_cost: f32,
@@ -112,7 +112,7 @@ pub struct BuildParams {
     pub builder: BuilderKind,
     /// The fast builder hands a node with fewer primitives than this to the exact sweep.
     /// The default, 48, is the small-node size, so binning goes down to the small nodes
-    /// and the sweep only takes nodes that binning cannot split (perf/kdtree.md, "Fast
+    /// and the sweep only takes nodes that binning cannot split (perf/log/kdtree.md, "Fast
     /// build, second round", measures the choice).
     pub sweep_below: u32,
     /// The fast builder makes a node a leaf when even a perfect subtree below it could
@@ -120,7 +120,7 @@ pub struct BuildParams {
     /// area over the root's, in the units `raypack info` prints the cost in. In dense
     /// detail the greedy SAH splits on to the depth limit for gains of a millionth,
     /// copying references at every level: 1e-5 leaves out 53% of the conference room's
-    /// nodes, and a third of its build, at the same cost and ray rates (perf/kdtree.md,
+    /// nodes, and a third of its build, at the same cost and ray rates (perf/log/kdtree.md,
     /// "Splits that save nothing"). The exact builder ignores it; 0 turns it off.
     pub min_saving: f32,
     /// A small leaf's empty margins are cut off by a chain of splits at its primitives'
@@ -129,11 +129,11 @@ pub struct BuildParams {
     /// a leaf of one triangle (K_T > K_I), yet a leaf visit costs a lane walk about as
     /// much as ten inner steps, and a cut's empty side costs nothing: 0.5 takes the
     /// conference room's leaf visits per diffuse ray from 2.95 to about 2 and its
-    /// `stream` rate up 1.14x for 3% more nodes (perf/stream.md, "Empty margins cut"),
+    /// `stream` rate up 1.14x for 3% more nodes (perf/log/stream.md, "Empty margins cut"),
     /// on leaves of at most two primitives. The default 0.1 cuts every margin of a
     /// tenth of the cell or more: the conference room's diffuse `stream` rate 1.04x to
     /// 1.07x that of 0.5 for 6% more nodes, the bunny's camera packets 0.994x, the
-    /// build time the same (perf/stream.md, "Thirteenth session").
+    /// build time the same (perf/log/stream.md, "Thirteenth session").
     pub empty_cut: f32,
 }
 
@@ -160,7 +160,7 @@ impl Default for BuildParams {
 /// of the area: never for one primitive, under 50% for two, 75% for three. Leaves of
 /// two are included for those that `min_saving` ended without pricing any plane. Cutting larger
 /// leaves too added 2% more nodes for no gain on the conference room's diffuse rays and
-/// cost Sponza's diffuse stream about 3% (perf/stream.md, "Empty margins cut").
+/// cost Sponza's diffuse stream about 3% (perf/log/stream.md, "Empty margins cut").
 const EMPTY_CUT_MAX_PRIMS: usize = 2;
 
 /// The bounds that a leaf of `n` primitives cuts its empty margins down to: those of
@@ -423,7 +423,7 @@ impl KdTree {
         }
         // Where the mesh's own order scatters the leaves' triangles over many more cache
         // lines than need be, the records go in the order the leaves first name them,
-        // and the lists name those slots (perf/wide.md, "Triangle records in leaf
+        // and the lists name those slots (perf/log/wide.md, "Triangle records in leaf
         // order").
         let mut prims = prims;
         let mut prim_indices = out.prim_indices;

@@ -11,7 +11,7 @@
 //! cheapest over the same chunks, so a node prices only the chunks its references fill.
 //! The cheapest plane wins, ties going to the lower axis, then the lower position, as
 //! in the sweep. The work grows as n^2 per node, but in vectors: up to 48 references it
-//! is cheaper than keeping sorted lists (perf/kdtree.md, "Fast build, second round"). A
+//! is cheaper than keeping sorted lists (perf/log/kdtree.md, "Fast build, second round"). A
 //! straddling triangle is cut by the split plane alone and its sides met with its
 //! bounds in the cell ([`Builder::split_within`]): a little looser than clipping it to
 //! the cell first, and cheaper.
@@ -254,7 +254,7 @@ struct Plane {
 thread_local! {
     /// Each thread's children of small nodes, a pair per level below the small subtree
     /// being built: reused, so a small node does not fill two fresh nodes' 2.7 KB with
-    /// NaN (about 5% of Sponza's build, perf/kdtree.md).
+    /// NaN (about 5% of Sponza's build, perf/log/kdtree.md).
     static KIDS: std::cell::Cell<Vec<[SmallNode; 2]>> = const { std::cell::Cell::new(Vec::new()) };
 }
 

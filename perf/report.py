@@ -1,0 +1,721 @@
+#!/usr/bin/env python3
+"""Regenerates perf/README.md: raypack beside Embree on the same rays, build times, and
+global illumination beside Mitsuba 3.
+
+    python3 perf/report.py                    # everything; writes perf/README.md
+    python3 perf/report.py --quick --out /tmp/p.md   # small sizes, one round: checks the script
+    python3 perf/report.py --only bench --scene bunny   # one section, one scene (to stdout)
+
+Standard library only. It builds raypack (`cargo build --release`) unless `--raypack
+PATH` names a binary; builds the Embree harness (../shared/peers/embree beside the
+repository, or `--embree DIR`) into the cache folder when libembree-dev is installed, and
+without it measures raypack alone and says so on the page; writes the ray sets with the
+harness's `gen` (both tracers then trace the same rays) into the cache folder
+(~/.cache/raypack-perf, or `--cache DIR`), never into the repository. Every command runs
+under a timeout. The GI section comes from perf/gi_vs_mitsuba.py, run as its own
+process.
+
+A run with `--only` or `--scene` measures part of the suite and prints its page on
+standard output (or writes `--out FILE`); only a whole run writes perf/README.md.
+"""
+
+import argparse
+import datetime
+import json
+import math
+import os
+import platform
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tomllib
+from pathlib import Path
+
+# The suite, one row per scene. `name` labels the row and is raypack's scene argument
+# (a name of the scenes folder's cameras.toml); the row's OBJ and camera are that
+# table's. A row can instead carry its own: `obj` (relative to the scenes folder, or
+# with `{cache}` for a file made here), `eye`, `target`, `up`, `vfov_deg`, `raypack` (the
+# scene argument raypack gets, e.g. the OBJ's path) and `make` (a command that writes the
+# OBJ when it is missing; `{cache}`, `{raypack}` and `{repo}` are filled in), e.g.
+#   {"name": "grid500", "obj": "{cache}/grid500.obj", "raypack": "{cache}/grid500.obj",
+#    "make": "python3 {repo}/perf/grid_obj.py 500 {cache}/grid500.obj",
+#    "eye": [0.5, 0.5, 2.0], "target": [0.5, 0.5, 0.0], "up": [0, 1, 0], "vfov_deg": 60},
+SCENES = [
+    {"name": "sponza"},
+    {"name": "conference"},
+    {"name": "bunny"},
+    {"name": "cornell_box"},
+]
+
+# The standard sets of RAYS.md; shadow rays are any-hit queries for both tracers.
+SETS = ["primary", "shadow", "diffuse"]
+# Embree's stream context per set: coherent for the camera and shadow sets, incoherent
+# for diffuse rays (the faster choice for each, ../shared/peers/embree/README.md).
+EMBREE_COHERENT = {"primary": "yes", "shadow": "yes", "diffuse": "no"}
+EMBREE_KERNELS = ["single", "packet4", "packet8", "stream"]
+
+FULL = {"rounds": 3, "repeat": 3, "width": 1024, "height": 768, "builds": 3}
+QUICK = {"rounds": 1, "repeat": 2, "width": 256, "height": 192, "builds": 1}
+
+REPO = Path(__file__).resolve().parent.parent
+README = REPO / "perf" / "README.md"
+
+
+class RunError(Exception):
+    """A command failed or ran out of time; the message names it."""
+
+
+def log(msg):
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def run(cmd, timeout, **kw):
+    """`cmd`'s standard output; RunError when it fails or takes longer than `timeout` s."""
+    cmd = [str(c) for c in cmd]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, **kw)
+    except subprocess.TimeoutExpired:
+        raise RunError(f"{' '.join(cmd)}: no answer after {timeout} s") from None
+    except FileNotFoundError:
+        raise RunError(f"{cmd[0]}: not found") from None
+    if p.returncode != 0:
+        tail = (p.stderr or p.stdout).strip().splitlines()[-5:]
+        raise RunError(f"{' '.join(cmd)}: exit {p.returncode}: {' / '.join(tail)}")
+    return p.stdout
+
+
+def load_average():
+    """The 1-minute load average."""
+    try:
+        return float(Path("/proc/loadavg").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return float("nan")
+
+
+class LoadSampler:
+    """Samples the 1-minute load average every 10 s while the measurements run."""
+
+    def __init__(self):
+        self.samples = [load_average()]
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.loop, daemon=True)
+        self.thread.start()
+
+    def loop(self):
+        while not self.stop.wait(10):
+            self.samples.append(load_average())
+
+    def range(self):
+        self.stop.set()
+        xs = [x for x in self.samples + [load_average()] if not math.isnan(x)]
+        return (min(xs), max(xs)) if xs else (float("nan"), float("nan"))
+
+
+def cache_folder(arg):
+    if arg:
+        path = Path(arg)
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+        path = Path(base) / "raypack-perf"
+    path.mkdir(parents=True, exist_ok=True)
+    return path.resolve()
+
+
+def scenes_folder(arg):
+    """--scenes, else $RAYPACK_SCENES, else ../shared/scenes beside the repository."""
+    path = Path(arg or os.environ.get("RAYPACK_SCENES") or REPO.parent / "shared" / "scenes")
+    if not (path / "cameras.toml").is_file():
+        sys.exit(f"report.py: {path}/cameras.toml not found (give --scenes DIR)")
+    return path.resolve()
+
+
+def build_raypack(timeout=3600):
+    """Builds raypack in release mode; returns the binary."""
+    log("cargo build --release")
+    run(["cargo", "build", "--release", "--bin", "raypack"], timeout, cwd=REPO)
+    return REPO / "target" / "release" / "raypack"
+
+
+def raypack_binary(arg):
+    if arg:
+        path = Path(arg).resolve()
+        if not os.access(path, os.X_OK):
+            sys.exit(f"report.py: --raypack {path}: not an executable")
+        return path
+    return build_raypack()
+
+
+def cpu_description():
+    """CPU model, logical cores and the widest vector ISA of the flags in /proc/cpuinfo."""
+    model, flags = platform.processor() or platform.machine(), set()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name":
+                model = value.strip()
+            elif key.strip() == "flags":
+                flags = set(value.split())
+    except OSError:
+        pass
+    if "avx512f" in flags:
+        isa = "AVX-512F"
+    elif {"avx2", "fma"} <= flags:
+        isa = "AVX2+FMA"
+    elif flags:
+        isa = "baseline (no AVX2+FMA)"
+    else:
+        isa = "unknown"
+    return model, os.cpu_count() or 1, isa
+
+
+def git_state():
+    """Short commit and whether the working tree had changes."""
+    try:
+        commit = run(["git", "-C", REPO, "rev-parse", "--short", "HEAD"], 30).strip()
+        dirty = bool(run(["git", "-C", REPO, "status", "--porcelain"], 30).strip())
+    except RunError:
+        return "unknown", False
+    return commit, dirty
+
+
+def fmt_vec(v):
+    return ",".join(repr(float(x)) for x in v)
+
+
+def suite(scenes_dir, cache, raypack, names):
+    """The rows of SCENES to measure (all, or those named), resolved: obj path, camera,
+    raypack's scene argument. Runs each row's `make` when its OBJ is missing."""
+    cams = tomllib.loads((scenes_dir / "cameras.toml").read_text())
+    known = [r["name"] for r in SCENES]
+    for n in names:
+        if n not in known:
+            sys.exit(f"report.py: --scene {n}: not in the suite ({', '.join(known)})")
+    rows = []
+    for row in SCENES:
+        if names and row["name"] not in names:
+            continue
+        fill = {"cache": str(cache), "raypack": str(raypack), "repo": str(REPO)}
+        r = dict(cams.get(row["name"], {}))
+        r.update({k: (v.format(**fill) if isinstance(v, str) else v) for k, v in row.items()})
+        obj = scenes_dir / r["obj"]
+        if not obj.is_file() and "make" in r:
+            log(f"{row['name']}: {r['make']}")
+            run(shlex.split(r["make"]), 3600, cwd=REPO)
+        if not obj.is_file():
+            sys.exit(f"report.py: {row['name']}: {obj} not found")
+        rows.append({
+            "name": r["name"],
+            "raypack": r.get("raypack", r["name"]),
+            "obj": obj,
+            "camera": {k: r[k] for k in ("eye", "target", "up", "vfov_deg")},
+        })
+    return rows
+
+
+class Embree:
+    """The Embree harness, built into the cache folder."""
+
+    def __init__(self, source, cache):
+        self.binary = cache / "embree-build" / "embree-anchor"
+        log(f"make -C {source} BUILD={self.binary.parent}")
+        run(["make", "-C", source, f"BUILD={self.binary.parent}"], 900)
+        self.version = "Embree"
+
+    def gen(self, row, out, width, height):
+        c = row["camera"]
+        run([self.binary, "gen", "--obj", row["obj"], "--eye", fmt_vec(c["eye"]),
+             "--target", fmt_vec(c["target"]), "--up", fmt_vec(c["up"]),
+             "--vfov", repr(float(c["vfov_deg"])), "--width", width, "--height", height,
+             "--out", out], 1800)
+
+    def bench(self, obj, rays, query, coherent, repeat, threads=1, build_threads=None,
+              build_repeat=1, modes=EMBREE_KERNELS):
+        """RESULT and BUILD lines of one harness run, as dicts."""
+        cmd = [self.binary, "bench", "--obj", obj, "--rays", rays, "--mode", ",".join(modes),
+               "--threads", threads, "--repeat", repeat, "--query", query,
+               "--coherent", coherent, "--build-repeat", build_repeat]
+        if build_threads:
+            cmd += ["--build-threads", build_threads]
+        out = run(cmd, 1800)
+        results, builds = [], []
+        for line in out.splitlines():
+            if line.startswith("embree "):
+                self.version = "Embree " + line.split()[1].rstrip(":")
+            kind, _, rest = line.partition(" ")
+            if kind in ("RESULT", "BUILD"):
+                d = dict(kv.split("=", 1) for kv in rest.split())
+                (results if kind == "RESULT" else builds).append(d)
+        return results, builds
+
+
+def embree_harness(arg, cache):
+    """The built harness, or (None, reason)."""
+    source = Path(arg) if arg else REPO.parent / "shared" / "peers" / "embree"
+    if not (source / "Makefile").is_file():
+        return None, f"the Embree harness was not found at {source} (give --embree DIR)"
+    header = Path("/usr/include/embree3/rtcore.h")
+    if not header.is_file():
+        return None, ("Embree 3 is not installed (`apt-get update && apt-get install -y "
+                      "libembree-dev`)")
+    try:
+        return Embree(source.resolve(), cache), None
+    except RunError as e:
+        return None, f"the Embree harness did not build: {e}"
+
+
+def ray_sets(row, cache, embree, raypack, width, height):
+    """The folder holding the row's three sets at width x height: the harness's `gen`
+    files where Embree is there, else raypack's own sets (same rules, RAYS.md)."""
+    key = f"{row['name']}-{width}x{height}-{'embree' if embree else 'raypack'}"
+    folder = cache / "rays" / key
+    stamp = folder / "done.json"
+    want = {"obj": str(row["obj"]), "mtime": row["obj"].stat().st_mtime,
+            "size": row["obj"].stat().st_size, "camera": row["camera"]}
+    if stamp.is_file() and json.loads(stamp.read_text()) == want:
+        return folder
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    log(f"{row['name']}: writing the ray sets ({width}x{height}) into {folder}")
+    if embree:
+        embree.gen(row, folder, width, height)
+    else:
+        for s in SETS:
+            run([raypack, "rays", row["raypack"], "--set", s, "-o", folder / f"{s}.rays",
+                 "--width", width, "--height", height], 1800)
+    stamp.write_text(json.dumps(want))
+    return folder
+
+
+def raypack_bench(raypack, row, folder, repeat, tmp):
+    """raypack's rates on the folder's sets, one thread, every mode: {set: {mode: rate}},
+    hit counts per set, the report's machine line."""
+    out = Path(tmp) / "bench.json"
+    # `bench` makes its own sets before it reads the folder's; 16x16 keeps that cheap.
+    run([raypack, "bench", row["raypack"], "--rays", folder, "--sets", ",".join(SETS),
+         "--modes", "all", "--threads", 1, "--repeat", repeat, "--width", 16,
+         "--height", 16, "--json", out], 3600)
+    report = json.loads(out.read_text())
+    rates, hits = {}, {}
+    for r in report["results"]:
+        rates.setdefault(r["set"], {})[r["mode"]] = r["mrays_median"]
+        hits[r["set"]] = int(r["checksum"].split(":")[0])
+    return rates, hits, report
+
+
+def measure_traversal(rows, raypack, embree, cache, cfg):
+    """Alternated rounds per scene: raypack's modes and Embree's kernels on the same
+    files. Returns per (scene, set) the per-round rates of every mode and kernel."""
+    data = []
+    for row in rows:
+        folder = ray_sets(row, cache, embree, raypack, cfg["width"], cfg["height"])
+        entry = {"scene": row["name"], "sets": {}, "triangles": None}
+        for s in SETS:
+            entry["sets"][s] = {"raypack": [], "embree": [], "rays": None,
+                                "hits_raypack": None, "hits_embree": None}
+        for rnd in range(cfg["rounds"]):
+            order = ["raypack", "embree"] if rnd % 2 == 0 else ["embree", "raypack"]
+            for who in order:
+                if who == "raypack":
+                    log(f"{row['name']}: round {rnd + 1}/{cfg['rounds']}: raypack")
+                    with tempfile.TemporaryDirectory() as tmp:
+                        rates, hits, rep = raypack_bench(raypack, row, folder, cfg["repeat"], tmp)
+                    entry["triangles"] = rep["triangles"]
+                    entry["simd"] = rep["machine"]["simd"]
+                    for s in SETS:
+                        e = entry["sets"][s]
+                        e["raypack"].append(rates[s])
+                        e["hits_raypack"] = hits[s]
+                        e["rays"] = next(r["rays"] for r in rep["results"] if r["set"] == s)
+                elif embree:
+                    log(f"{row['name']}: round {rnd + 1}/{cfg['rounds']}: Embree")
+                    for s in SETS:
+                        query = "occluded" if s == "shadow" else "intersect"
+                        results, _ = embree.bench(row["obj"], folder / f"{s}.rays", query,
+                                                  EMBREE_COHERENT[s], cfg["repeat"])
+                        e = entry["sets"][s]
+                        e["embree"].append({r["mode"]: float(r["median"]) for r in results})
+                        e["hits_embree"] = int(results[0]["hits"])
+        data.append(entry)
+    return data
+
+
+def best(rounds):
+    """The mode with the highest median over rounds, and that median."""
+    modes = rounds[0].keys()
+    med = {m: statistics.median(r[m] for r in rounds) for m in modes}
+    mode = max(med, key=med.get)
+    return mode, med[mode]
+
+
+def geomean(xs):
+    xs = [x for x in xs if x > 0]
+    return math.exp(sum(map(math.log, xs)) / len(xs)) if xs else float("nan")
+
+
+def summarise_traversal(data):
+    """Rows of the table: best mode and kernel per (scene, set), the ratio (median over
+    rounds of raypack's best mode over Embree's best kernel in the same round)."""
+    rows = []
+    for entry in data:
+        for s in SETS:
+            e = entry["sets"][s]
+            rmode, rrate = best(e["raypack"])
+            row = {"scene": entry["scene"], "triangles": entry["triangles"], "set": s,
+                   "rays": e["rays"], "raypack_mode": rmode, "raypack": rrate,
+                   "raypack_all": {m: statistics.median(r[m] for r in e["raypack"])
+                                   for m in e["raypack"][0]},
+                   "hits_raypack": e["hits_raypack"], "hits_embree": e["hits_embree"]}
+            if e["embree"]:
+                emode, erate = best(e["embree"])
+                row.update({
+                    "embree_mode": emode, "embree": erate,
+                    "embree_all": {m: statistics.median(r[m] for r in e["embree"])
+                                   for m in e["embree"][0]},
+                    "ratio": statistics.median(a[rmode] / b[emode]
+                                               for a, b in zip(e["raypack"], e["embree"])),
+                })
+            rows.append(row)
+    return rows
+
+
+def measure_builds(rows, raypack, embree, cache, cfg):
+    """raypack's build on 1 and 2 threads (`info`, median of `builds`) beside Embree's
+    high-quality build on 1 and 2 threads (the harness's BUILD line), alternated."""
+    out = []
+    for row in rows:
+        r = {"scene": row["name"]}
+        for threads in (1, 2):
+            log(f"{row['name']}: build, {threads} thread(s)")
+            with tempfile.TemporaryDirectory() as tmp:
+                j = Path(tmp) / "info.json"
+                run([raypack, "info", row["raypack"], "--threads", threads, "--repeat",
+                     cfg["builds"], "--json", j], 1800)
+                info = json.loads(j.read_text())
+            r[f"raypack_{threads}"] = info["build_seconds"]["median"]
+            r.update({"triangles": info["triangles"], "builder": info["builder"],
+                      "nodes": info["nodes"], "sah": info["sah"]["cost"],
+                      "bytes": info["memory"]["total"]["bytes"]})
+            if embree:
+                folder = ray_sets(row, cache, embree, raypack, cfg["width"], cfg["height"])
+                _, builds = embree.bench(row["obj"], folder / "primary.rays", "intersect",
+                                         "yes", 1, build_threads=threads,
+                                         build_repeat=cfg["builds"], modes=["single"])
+                for b in builds:
+                    r[f"embree_{b['quality']}_{threads}"] = float(b["median_s"])
+        out.append(r)
+    return out
+
+
+def run_gi(raypack, args, cfg_quick, cache):
+    """perf/gi_vs_mitsuba.py's JSON, or a dict saying why there is none."""
+    with tempfile.TemporaryDirectory() as tmp:
+        j = Path(tmp) / "gi.json"
+        cmd = [sys.executable, REPO / "perf" / "gi_vs_mitsuba.py", "--raypack", raypack,
+               "--json", j, "--cache", cache]
+        if args.scenes:
+            cmd += ["--scenes", args.scenes]
+        if cfg_quick:
+            cmd.append("--quick")
+        log("GI: " + " ".join(str(c) for c in cmd[1:]))
+        try:
+            run(cmd, 7200)
+        except RunError as e:
+            if j.is_file():
+                return json.loads(j.read_text())
+            return {"error": str(e)}
+        return json.loads(j.read_text())
+
+
+def table(header, rows, align):
+    align = (list(align) + ["l"] * len(header))[:len(header)]
+    lines = ["| " + " | ".join(header) + " |",
+             "| " + " | ".join("---:" if a == "r" else "---" for a in align) + " |"]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def plural(n, noun):
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def f2(x):
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.2f}"
+
+
+def secs(x):
+    if x is None:
+        return "-"
+    return f"{x:.3f} s" if x >= 0.01 else f"{x * 1000:.2f} ms"
+
+
+def section_bench(trav, embree_note, cfg, quick_flag):
+    out = ["## Traversal beside Embree", ""]
+    modes = list(trav[0]["raypack_all"]) if trav else []
+    have_embree = any("embree" in r for r in trav)
+    rp = (f"raypack (`raypack bench NAME --rays DIR --modes all --threads 1 --repeat "
+          f"{cfg['repeat']}`)")
+    size = f"{cfg['width']}x{cfg['height']}"
+    if have_embree:
+        out.append(
+            f"Mrays/s, one thread, on the same ray files (the Embree harness's `gen`, {size}; "
+            f"../shared/RAYS.md). {plural(cfg['rounds'], 'round')}; in each, {rp} and Embree "
+            f"(the harness's `bench --mode {','.join(EMBREE_KERNELS)} --threads 1 --repeat "
+            f"{cfg['repeat']}`, shadow rays as `--query occluded`) take turns, each rate the "
+            f"median of {cfg['repeat']} passes after a warm-up. A rate below is the median "
+            "over the rounds; *best* is the mode or kernel with the highest one; the ratio "
+            "is the median over rounds of raypack's best mode over Embree's best kernel in "
+            "the same round. *Hits* compares the two tracers' hit counts on the set (for "
+            "shadow rays: occluded rays).")
+    else:
+        out.append(
+            f"**Embree was not measured:** {embree_note}. raypack's columns alone: Mrays/s, "
+            f"one thread, on raypack's own sets (`raypack rays`, {size}, the rules of "
+            f"../shared/RAYS.md); {plural(cfg['rounds'], 'round')} of {rp}, each rate the "
+            f"median of {cfg['repeat']} passes after a warm-up, then the median over the "
+            "rounds; *best* is the mode with the highest one.")
+    out.append("")
+    header = ["scene", "triangles", "set", "rays", "raypack best", "Mrays/s"]
+    if have_embree:
+        header += ["Embree best", "Mrays/s", "raypack / Embree", "hits"]
+    body = []
+    for r in trav:
+        line = [r["scene"], f"{r['triangles']:,}", r["set"], f"{r['rays']:,}",
+                r["raypack_mode"], f2(r["raypack"])]
+        if have_embree:
+            same = "same" if r["hits_raypack"] == r["hits_embree"] else (
+                f"{r['hits_raypack']:,} vs {r['hits_embree']:,}")
+            line += [r["embree_mode"], f2(r["embree"]), f"**{r['ratio']:.2f}**", same]
+        body.append(line)
+    out += [table(header, body, ["l", "r", "l", "r", "l", "r", "l", "r", "r", "l"]), ""]
+    if have_embree:
+        g = geomean([r["ratio"] for r in trav])
+        per = [f"{s} {geomean([r['ratio'] for r in trav if r['set'] == s]):.2f}"
+               for s in SETS if any(r["set"] == s for r in trav)]
+        out += [f"Geometric mean of raypack / Embree over the {len(trav)} pairs: "
+                f"**{g:.2f}**; per set: {', '.join(per)}.", ""]
+    out += ["Every mode, medians over the rounds (Mrays/s; the best of each tracer in bold):", ""]
+    header = ["scene", "set"] + [f"raypack {m}" for m in modes]
+    if have_embree:
+        header += [f"Embree {k}" for k in EMBREE_KERNELS]
+    body = []
+    for r in trav:
+        line = [r["scene"], r["set"]] + [
+            f"**{f2(r['raypack_all'][m])}**" if m == r["raypack_mode"] else f2(r["raypack_all"].get(m))
+            for m in modes]
+        if have_embree:
+            line += [f"**{f2(r['embree_all'][k])}**" if k == r["embree_mode"]
+                     else f2(r["embree_all"].get(k)) for k in EMBREE_KERNELS]
+        body.append(line)
+    out += [table(header, body, ["l", "l"] + ["r"] * (len(header) - 2)), ""]
+    out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only bench` (one scene: add "
+            "`--scene NAME`).", ""]
+    return out
+
+
+def section_build(builds, have_embree, cfg, quick_flag):
+    out = ["## Build", ""]
+    out.append(
+        f"Seconds, median of {plural(cfg['builds'], 'build')}, OBJ loading not included. "
+        f"raypack: `raypack info NAME --threads T --repeat {cfg['builds']}` (the default "
+        "tree flags)." + (
+            " Embree: the harness's `BUILD` line (`rtcCommitScene` alone) with "
+            "`--build-threads T`, taken right after raypack's." if have_embree else ""))
+    out.append("")
+    header = ["scene", "triangles", "raypack 1 thread", "raypack 2 threads"]
+    if have_embree:
+        header += ["Embree high, 1 thread", "Embree high, 2 threads", "Embree medium, 2 threads"]
+    header += ["nodes", "memory", "SAH cost"]
+    body = []
+    for b in builds:
+        line = [b["scene"], f"{b['triangles']:,}", secs(b["raypack_1"]), secs(b["raypack_2"])]
+        if have_embree:
+            line += [secs(b.get("embree_high_1")), secs(b.get("embree_high_2")),
+                     secs(b.get("embree_medium_2"))]
+        size = (f"{b['bytes'] / 2**20:.2f} MiB" if b["bytes"] >= 2**20
+                else f"{b['bytes'] / 2**10:.2f} KiB")
+        line += [f"{b['nodes']:,}", f"{size} ({b['bytes'] / max(b['triangles'], 1):.1f} B/tri)",
+                 f"{b['sah']:.2f}"]
+        body.append(line)
+    out += [table(header, body, ["l"] + ["r"] * (len(header) - 1)), ""]
+    builder = sorted({b["builder"] for b in builds})
+    out += [f"raypack builder: {', '.join(builder)}.", ""]
+    out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only build` (one scene: add "
+            "`--scene NAME`).", ""]
+    return out
+
+
+def section_gi(gi, quick_flag):
+    out = ["## Global illumination beside Mitsuba 3", ""]
+    if "missing" in gi:
+        out += [f"**Not measured:** {gi['missing']}. Install it with `{gi['install']}`, then "
+                "run the command below.", ""]
+    elif "error" in gi:
+        out += [f"**Not measured:** the comparison failed: `{gi['error']}`.", ""]
+    else:
+        c = gi["conditions"]
+        out.append(
+            f"The benchmark Cornell box (`{c['scene']}`: its OBJ with `o`/`usemtl` groups "
+            f"and MTL; the light's radiance is its `Ka`) at {c['width']}x{c['height']}, "
+            f"{c['spp']} samples per pixel, {c['threads']} threads, box pixel filter, "
+            "the camera of cameras.toml (vertical fov). raypack: "
+            f"`{c['raypack_command']}`. Mitsuba {c['mitsuba_version']} "
+            f"(`{c['variant']}`): `path` integrator, max depth {c['max_depth']}, Russian "
+            f"roulette from depth {c['rr_depth']} (raypack's: {c['rr_note']}), "
+            "`independent` sampler, Lambertian surfaces as `twosided` `diffuse`, the light "
+            "an `area` emitter. "
+            f"{plural(c['rounds'], 'round')}, the two renderers taking turns; time is the render "
+            "alone (scene loading and acceleration structure excluded; Mitsuba's after a "
+            "warm-up render that compiles its kernels), median over rounds; round k uses "
+            "seed k in both, so the images, and the MSE, repeat from run to run. MSE is "
+            f"against a Mitsuba reference of {c['reference_spp']:,} samples per pixel (made "
+            "once by the same script and kept in its cache folder, outside the repository; "
+            "mean over pixels and channels of linear radiance, median over rounds); "
+            "efficiency is 1 / (time x MSE).")
+        out.append("")
+        header = ["renderer", "time", "MSE", "efficiency", "mean R, G, B (reference: "
+                  + ", ".join(f"{x:.4f}" for x in gi["reference_means"]) + ")"]
+        body = []
+        for who in ("raypack", "mitsuba"):
+            g = gi[who]
+            body.append([g["label"], f"{g['seconds']:.2f} s", f"{g['mse']:.5f}",
+                         f"{g['efficiency']:.2f}",
+                         ", ".join(f"{x:.4f}" for x in g["means"])])
+        out += [table(header, body, ["l", "r", "r", "r", "l"]), ""]
+        r = gi["ratios"]
+        out += [f"raypack / Mitsuba: time **{r['time']:.2f}**, MSE **{r['mse']:.2f}**, "
+                f"efficiency **{r['efficiency']:.2f}** (above 1: raypack reaches a given "
+                "error sooner).", ""]
+        out += [gi["agreement"], ""]
+    out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only gi`, or "
+            f"`python3 perf/gi_vs_mitsuba.py{quick_flag}` alone.", ""]
+    return out
+
+
+def page(meta, parts):
+    out = ["# raypack performance", ""]
+    out.append(
+        f"This page is generated: `{meta['command']}` measured everything on it in one run "
+        f"(about {plural(meta['minutes'], 'minute')}) and wrote it; run `python3 "
+        "perf/report.py` again to bring it up to date rather than editing it. Each table "
+        "names the command that reproduces it. The session notes of earlier rounds, with "
+        "the experiments behind the code, are history in [log/](log/).")
+    out.append("")
+    out.append("## Machine and run")
+    out.append("")
+    dirty = ", with uncommitted changes" if meta["dirty"] else ", clean working tree"
+    lo, hi = meta["load"]
+    busy = hi > 0.5 + meta["cores"] / 2
+    out += [
+        f"- Date: {meta['date']}",
+        f"- Commit: `{meta['commit']}`{dirty}",
+        f"- CPU: {meta['cpu']}, {meta['cores']} logical cores; vector ISA from "
+        f"/proc/cpuinfo: {meta['isa']}; the raypack binary is built for "
+        f"{meta.get('simd', 'its build machine (not reported: no bench run)')}",
+        f"- Peers: {meta['peers']}",
+        f"- 1-minute load average, sampled through the run: {lo:.2f} to {hi:.2f} on "
+        f"{meta['cores']} cores" + (
+            ". Other processes were running beside the measurements, so absolute rates "
+            "are lower and noisier than on an idle machine; the ratios, taken within "
+            "one round, are the figures to compare." if busy else "."),
+    ]
+    if meta["quick"]:
+        out.append("- **Quick run** (`--quick`: small images, one round): for checking the "
+                   "script, not for reading.")
+    out.append("")
+    for p in parts:
+        out += p
+    out += ["## Reproduce", "",
+            "From the repository, with `../shared/scenes` and `../shared/peers/embree` "
+            "beside it:", "",
+            "    apt-get update && apt-get install -y libembree-dev   # Embree 3 for the harness",
+            "    pip install mitsuba==3.9.1                            # the GI comparison",
+            "    python3 perf/report.py                                # writes perf/README.md",
+            "",
+            "`--quick` checks the script in a few minutes; `--only bench|build|gi` and "
+            "`--scene NAME` (repeatable) measure part of the suite and print the page "
+            "(or `--out FILE`); `--raypack PATH` skips the build; `--embree DIR`, "
+            "`--scenes DIR` and `--cache DIR` move the inputs and the ray files "
+            "(default cache ~/.cache/raypack-perf). The scenes are the rows of `SCENES` at "
+            "the top of perf/report.py.", ""]
+    return "\n".join(out).rstrip() + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes, one round")
+    ap.add_argument("--only", choices=["bench", "build", "gi"], action="append",
+                    help="measure only this section (repeatable)")
+    ap.add_argument("--scene", action="append", default=[], help="only this scene (repeatable)")
+    ap.add_argument("--out", help="write the page here (default: perf/README.md for a "
+                    "whole run, standard output otherwise)")
+    ap.add_argument("--raypack", help="the raypack binary (default: cargo build --release)")
+    ap.add_argument("--embree", help="the Embree harness's folder")
+    ap.add_argument("--scenes", help="the benchmark scenes (default ../shared/scenes)")
+    ap.add_argument("--cache", help="ray files and builds (default ~/.cache/raypack-perf)")
+    args = ap.parse_args()
+
+    start = time.time()
+    cfg = QUICK if args.quick else FULL
+    only = set(args.only or ["bench", "build", "gi"])
+    whole = not args.only and not args.scene
+    out_path = args.out or (str(README) if whole else "-")
+    commit, dirty = git_state()
+    loads = LoadSampler()
+    scenes_dir = scenes_folder(args.scenes)
+    cache = cache_folder(args.cache)
+    raypack = raypack_binary(args.raypack)
+    rows = suite(scenes_dir, cache, raypack, args.scene)
+    embree, embree_note = (None, "not needed")
+    if only & {"bench", "build"}:
+        embree, embree_note = embree_harness(args.embree, cache)
+        if not embree:
+            log(f"Embree: {embree_note}")
+    model, cores, isa = cpu_description()
+    meta = {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "commit": commit, "dirty": dirty, "cpu": model, "cores": cores, "isa": isa,
+            "quick": args.quick,
+            "command": " ".join(["python3 perf/report.py"] + [shlex.quote(a) for a in sys.argv[1:]])}
+    quick_flag = " --quick" if args.quick else ""
+    parts = []
+    peers = []
+    if "bench" in only:
+        data = measure_traversal(rows, raypack, embree, cache, cfg)
+        meta["simd"] = next((d["simd"] for d in data if "simd" in d), None) or "unknown"
+        parts.append(section_bench(summarise_traversal(data), embree_note, cfg, quick_flag))
+    if "build" in only:
+        builds = measure_builds(rows, raypack, embree, cache, cfg)
+        parts.append(section_build(builds, embree is not None, cfg, quick_flag))
+    if embree:
+        peers.append(f"{embree.version} (Debian's libembree-dev) through "
+                     "../shared/peers/embree, built with `-O3 -march=native`")
+    elif only & {"bench", "build"}:
+        peers.append(f"Embree not measured: {embree_note}")
+    if "gi" in only:
+        gi = run_gi(raypack, args, args.quick, cache)
+        if "conditions" in gi:
+            peers.append(f"Mitsuba {gi['conditions']['mitsuba_version']} "
+                         f"(`{gi['conditions']['variant']}`)")
+        parts.append(section_gi(gi, quick_flag))
+    meta["peers"] = "; ".join(peers) or "none"
+    meta["load"] = loads.range()
+    meta["minutes"] = max(1, round((time.time() - start) / 60))
+    text = page(meta, parts)
+    if out_path == "-":
+        sys.stdout.write(text)
+    else:
+        tmp = Path(out_path).with_name(Path(out_path).name + f".tmp.{os.getpid()}")
+        tmp.write_text(text)
+        tmp.replace(out_path)
+        log(f"wrote {out_path}")
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except RunError as e:
+        sys.exit(f"report.py: {e}")
