@@ -682,31 +682,98 @@ fn texture_errors_in_scenes_say_each_thing_once() {
     }
 }
 
-/// Hostile text that is not in the corpus: none of it may panic.
+/// What a hostile text must give.
+#[derive(Clone, Copy)]
+enum Hostile {
+    /// Refused: the variant, the line, and what the message names.
+    Refused(fn(&SceneError) -> bool, usize, &'static [&'static str]),
+    /// Well-formed and finite: loading and refusing are both fine.
+    Either,
+}
+
+/// Hostile text that is not in the corpus: none of it may panic, and what is malformed is
+/// refused as bad input with its variant, line and key.
 #[test]
 fn hostile_scene_text_never_panics() {
+    use Hostile::{Either, Refused};
     let path = data("scene/generated.toml");
     let cam = "[camera]\neye = [0, 0, -5]\ntarget = [0, 0, 0]\n";
+    let invalid = |e: &SceneError| matches!(e, SceneError::Invalid { .. });
+    let no_camera = Refused(invalid, 1, &["camera", "missing"]);
     let cases = [
-        String::new(),
-        "\u{0}\u{1}\u{2}".to_string(),
-        "[[spheres]]\n".repeat(10_000),
-        format!("{cam}[[spheres]]\ncenter = [0, 0, 0]\nradius = 1e-45\n"),
-        format!("{cam}[render]\nwidth = 0x7fffffffffffffff\n"),
-        format!("{cam}[render]\nwidth = -9223372036854775808\n"),
-        format!("{cam}[render]\nwidth = 1.5\n"),
-        format!("{cam}[[lights]]\nkind = 5\n"),
-        format!(
-            "{cam}[textures.t]\nkind = \"checker\"\nwidth = 4096\nheight = 4096\nsquares = 0\n"
+        (String::new(), no_camera),
+        (
+            "\u{0}\u{1}\u{2}".to_string(),
+            Refused(|e| matches!(e, SceneError::Syntax { .. }), 1, &[]),
         ),
-        format!("{cam}[[meshes]]\nfile = \"\"\n"),
-        format!("{cam}[[meshes]]\nfile = \"/\"\n"),
-        format!("{}{cam}", "# comment\n".repeat(1000)),
-        format!("{cam}x = {{a = {{b = {{c = {{d = 1}}}}}}}}\n"),
-        format!("{cam}[[spheres]]\ncenter = [1e38, 1e38, 1e38]\nradius = 3e38\n"),
+        ("[[spheres]]\n".repeat(10_000), no_camera),
+        (
+            format!("{cam}[[spheres]]\ncenter = [0, 0, 0]\nradius = 1e-45\n"),
+            Either,
+        ),
+        (
+            format!("{cam}[render]\nwidth = 0x7fffffffffffffff\n"),
+            Refused(invalid, 5, &["render.width", "out of range"]),
+        ),
+        (
+            format!("{cam}[render]\nwidth = -9223372036854775808\n"),
+            Refused(invalid, 5, &["render.width", "out of range"]),
+        ),
+        (
+            format!("{cam}[render]\nwidth = 1.5\n"),
+            Refused(invalid, 5, &["render.width", "expected an integer"]),
+        ),
+        (
+            format!("{cam}[[lights]]\nkind = 5\n"),
+            Refused(invalid, 5, &["lights[0].kind", "expected a string"]),
+        ),
+        (
+            format!(
+                "{cam}[textures.t]\nkind = \"checker\"\nwidth = 4096\nheight = 4096\nsquares = 0\n"
+            ),
+            Refused(invalid, 8, &["textures.t.squares", "out of range"]),
+        ),
+        (
+            format!("{cam}[[meshes]]\nfile = \"\"\n"),
+            Refused(invalid, 5, &["meshes[0].file", "empty file name"]),
+        ),
+        (
+            format!("{cam}[[meshes]]\nfile = \"/\"\n"),
+            Refused(
+                |e| matches!(e, SceneError::Mesh { .. }),
+                5,
+                &["meshes[0].file", "cannot load the mesh"],
+            ),
+        ),
+        (
+            format!("{}{cam}", "# comment\n".repeat(1000)),
+            Refused(invalid, 1, &["no primitives"]),
+        ),
+        (
+            format!("{cam}x = {{a = {{b = {{c = {{d = 1}}}}}}}}\n"),
+            Refused(
+                |e| matches!(e, SceneError::UnknownKey { .. }),
+                4,
+                &["camera.x"],
+            ),
+        ),
+        (
+            format!("{cam}[[spheres]]\ncenter = [1e38, 1e38, 1e38]\nradius = 3e38\n"),
+            Either,
+        ),
     ];
-    for text in &cases {
-        let _ = file::parse(&path, text);
+    for (text, expect) in &cases {
+        let head = &text[..text.len().min(80)];
+        match (file::parse(&path, text), expect) {
+            (Err(e), Refused(variant, line, parts)) => {
+                assert!(variant(&e), "{head:?}: unexpected variant: {e:?}");
+                assert!(raypack::is_input_error(&e), "{head:?}: not bad input");
+                assert_names(&chain(&e), "generated.toml", *line, parts);
+            }
+            (Ok(_), Refused(..)) => panic!("{head:?} loaded, but it is malformed"),
+            (Err(e), Either) => assert!(raypack::is_input_error(&e), "{head:?}: {e:?}"),
+            (Ok(_), Either) => {}
+        }
     }
 }
 

@@ -240,6 +240,7 @@ fn output_names_other_than_png_pfm_and_exr_are_refused_before_rendering() {
 /// `--spp 0`.
 #[test]
 fn gi_integrators_render_the_cornell_box() {
+    require_scenes!(common::scenes_beside_crate());
     let dir = scratch("gi");
     let scene = repo().join("scenes/gi/cornell_box.toml");
     for integrator in ["path", "photon"] {

@@ -34,7 +34,7 @@ fn brightness(png: &[u8]) -> f64 {
 
 #[test]
 fn benchmark_scenes_render_by_name_and_by_path() {
-    common::shared_scenes();
+    let scenes = require_scenes!();
     let dir = scratch("kinds");
     // By name, as `raypack bench` takes it; Sponza is mostly lit stone.
     let sponza = render(&dir, "sponza", "s.png", &[]);
@@ -49,7 +49,7 @@ fn benchmark_scenes_render_by_name_and_by_path() {
     let by_name = render(&dir, "cornell_box", "n.png", &[]);
     let by_path = render(
         &dir,
-        "../shared/scenes/cornell_box/cornell_box.obj",
+        s(&scenes.join("cornell_box/cornell_box.obj")),
         "p.png",
         &[],
     );
@@ -70,7 +70,7 @@ fn benchmark_scenes_render_by_name_and_by_path() {
 
 #[test]
 fn the_cornell_box_by_name_is_lit_by_its_emitter_under_global_illumination() {
-    common::shared_scenes();
+    require_scenes!(common::scenes_beside_crate());
     let dir = scratch("gi");
     let gi = ["--integrator", "path", "--spp", "4"];
     // By name, the MTL `light` emits (Ka 20): the same image as the GI scene file.
@@ -115,35 +115,36 @@ fn an_obj_without_a_camera_is_framed_and_overrides_move_any_camera() {
     let away = render(&dir, s(&obj), "a.png", &["--target", "100.5,100.5,200"]);
     assert_eq!(brightness(&away), 0.0);
 
-    // cameras.toml's own values as overrides change nothing; a new field of view does.
-    common::shared_scenes();
-    let plain = render(&dir, "cornell_box", "c0.png", &[]);
-    let same = [
-        "--eye",
-        "278,273,-800",
-        "--target",
-        "278,273,-799",
-        "--up",
-        "0,1,0",
-        "--vfov",
-        "39.3077",
-    ];
-    assert!(render(&dir, "cornell_box", "c1.png", &same) == plain);
-    let wide = render(&dir, "cornell_box", "c2.png", &["--vfov", "80"]);
-    assert!(wide != plain, "--vfov changed nothing");
-    // And on a scene file, whose camera comes from the file.
+    // On a scene file, whose camera comes from the file.
     let part1 = "scenes/part1.toml";
     let moved = render(&dir, part1, "m.png", &["--eye", "0,1,-9"]);
     assert!(
         moved != render(&dir, part1, "m0.png", &[]),
         "--eye changed nothing"
     );
+    // cameras.toml's own values as overrides change nothing; a new field of view does.
+    if common::scenes().is_some() {
+        let plain = render(&dir, "cornell_box", "c0.png", &[]);
+        let same = [
+            "--eye",
+            "278,273,-800",
+            "--target",
+            "278,273,-799",
+            "--up",
+            "0,1,0",
+            "--vfov",
+            "39.3077",
+        ];
+        assert!(render(&dir, "cornell_box", "c1.png", &same) == plain);
+        let wide = render(&dir, "cornell_box", "c2.png", &["--vfov", "80"]);
+        assert!(wide != plain, "--vfov changed nothing");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn unknown_names_and_unusable_cameras_are_bad_input() {
-    common::shared_scenes();
+    require_scenes!();
     let dir = scratch("bad");
     let png = dir.join("x.png");
     let out = raypack(&["render", "sponzza", "-o", s(&png)]);

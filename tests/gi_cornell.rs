@@ -11,15 +11,15 @@ use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
 use raypack::render::sample::pixel_rng;
-use raypack::scene::{Scene, obj};
+use raypack::scene::{Camera, Scene, obj};
 
 /// The Cornell box as `raypack render cornell_box` loads it ([`Scene::from_obj`], mapped
 /// as scenes/README.md says): the camera of cameras.toml, every MTL material Lambertian
 /// with albedo `Kd`, the `light` material emitting its `Ka` (20), no other light. `width x height` pixels.
 fn cornell(width: u32, height: u32) -> Scene {
-    let (_, camera) = common::shared_scene("cornell_box");
-    let path = common::shared_scenes().join("cornell_box/cornell_box.obj");
-    let (mut scene, _) = Scene::from_obj(&path, camera).expect("load the Cornell box");
+    let (entry, path) = raypack::scene::catalog::shared_scene("cornell_box").expect("cameras.toml");
+    let (mut scene, _) =
+        Scene::from_obj(&path, Camera::from(&entry.view())).expect("load the Cornell box");
     assert!(
         scene.lights.is_empty(),
         "lit by its emissive material alone"
@@ -99,6 +99,7 @@ fn render_blocks(scene: &Scene, integrator: &dyn Integrator, spp: u32, block: u3
 /// freedom each).
 #[test]
 fn path_and_photon_block_averages_agree_on_the_cornell_box() {
+    require_scenes!();
     let scene = cornell(40, 40);
     let accel = KdTree::build(&scene.geometry);
     let pt = PathTracer {
@@ -189,6 +190,7 @@ fn path_and_photon_block_averages_agree_on_the_cornell_box() {
 /// packets or one by one, for both integrators.
 #[test]
 fn gi_images_do_not_depend_on_the_thread_count() {
+    require_scenes!();
     let scene = cornell(24, 20);
     let accel = KdTree::build(&scene.geometry);
     let render = |threads: usize, photon: bool, mode: Mode| {
@@ -297,7 +299,7 @@ fn film_bits(f: &raypack::render::Film) -> Vec<[u32; 3]> {
 /// emissive `light` alone, Sponza by a point sun and a sky.
 #[test]
 fn gi_scene_files_load() {
-    common::shared_scenes();
+    require_scenes!(common::scenes_beside_crate());
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gi");
     let cb = raypack::scene::file::load(&dir.join("cornell_box.toml")).unwrap();
     assert!(cb.lights.is_empty());

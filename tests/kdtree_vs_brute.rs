@@ -270,6 +270,7 @@ fn parallel_equals_serial(params: BuildParams) {
 
 #[test]
 fn fast_tree_costs_at_most_one_percent_more_than_the_exact_tree() {
+    require_scenes!();
     let mut meshes = vec![
         (generate::random_soup(40_000, 0.03, 61), "soup".to_string()),
         (
@@ -361,11 +362,13 @@ fn check_shared_scene_with(
 
 #[test]
 fn bunny_camera_rays_match_brute_force() {
+    require_scenes!();
     check_shared_scene("bunny", 997);
 }
 
 #[test]
 fn cornell_box_camera_rays_match_brute_force() {
+    require_scenes!();
     check_shared_scene("cornell_box", 13);
 }
 
@@ -392,6 +395,7 @@ fn every_shipped_scene_matches_brute_force() {
 /// its tree stays the same node for node.
 #[test]
 fn splits_that_save_nothing_are_left_out() {
+    require_scenes!();
     let (g, _) = shared_scene("conference");
     let with = |min_saving: f32, builder: BuilderKind| {
         let params = BuildParams {

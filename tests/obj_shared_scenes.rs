@@ -1,27 +1,31 @@
 //! The benchmark meshes of ../shared/scenes load with the triangle counts and bounds that
-//! ../shared/scenes/README.md lists. A missing file fails the test, naming its path.
+//! ../shared/scenes/README.md lists. Without the folder the tests do not run (see
+//! `common::scenes`); a file missing from it fails the test, naming its path.
+
+mod common;
 
 use glam::Vec3;
 use raypack::scene::{Aabb, Camera, Scene, obj};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-fn shared(rel: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/scenes")
-        .join(rel);
-    assert!(
-        p.is_file(),
-        "benchmark mesh {} is missing (expected ../shared/scenes beside the repository)",
-        p.display()
-    );
+fn shared(scenes: &Path, rel: &str) -> PathBuf {
+    let p = scenes.join(rel);
+    assert!(p.is_file(), "benchmark mesh {} is missing", p.display());
     p
 }
 
 /// Loads `rel`, checks its triangle count and bounds (over used vertices), and prints the
 /// load time for the record (not asserted).
-fn check(rel: &str, triangles: usize, min: [f32; 3], max: [f32; 3], tol: f32) -> obj::ObjMesh {
-    let path = shared(rel);
+fn check(
+    scenes: &Path,
+    rel: &str,
+    triangles: usize,
+    min: [f32; 3],
+    max: [f32; 3],
+    tol: f32,
+) -> obj::ObjMesh {
+    let path = shared(scenes, rel);
     let start = Instant::now();
     let m = obj::load(&path).unwrap_or_else(|e| panic!("{e}"));
     eprintln!(
@@ -49,7 +53,9 @@ fn check(rel: &str, triangles: usize, min: [f32; 3], max: [f32; 3], tol: f32) ->
 
 #[test]
 fn bunny_loads() {
+    let scenes = require_scenes!();
     let m = check(
+        &scenes,
         "bunny/bunny.obj",
         69_451,
         [-0.09469, 0.032987, -0.061874],
@@ -61,7 +67,9 @@ fn bunny_loads() {
 
 #[test]
 fn sponza_loads() {
+    let scenes = require_scenes!();
     check(
+        &scenes,
         "sponza/sponza.obj",
         262_267,
         [-1920.9459, -126.4425, -1182.8071],
@@ -72,7 +80,9 @@ fn sponza_loads() {
 
 #[test]
 fn conference_loads() {
+    let scenes = require_scenes!();
     check(
+        &scenes,
         "conference/conference.obj",
         331_179,
         [-1020.13, -2.7924, -1055.66],
@@ -83,7 +93,9 @@ fn conference_loads() {
 
 #[test]
 fn cornell_box_loads_with_its_materials() {
+    let scenes = require_scenes!();
     let m = check(
+        &scenes,
         "cornell_box/cornell_box.obj",
         36,
         [0.0, 0.0, 0.0],
@@ -103,13 +115,14 @@ fn cornell_box_loads_with_its_materials() {
 
 #[test]
 fn scene_from_obj_maps_mtl_colours_and_keeps_geometric_normals() {
+    let scenes = require_scenes!();
     let cam = Camera {
         eye: Vec3::new(278.0, 273.0, -800.0),
         target: Vec3::new(278.0, 273.0, -799.0),
         up: Vec3::Y,
         vfov_deg: 39.3077,
     };
-    let path = shared("cornell_box/cornell_box.obj");
+    let path = shared(&scenes, "cornell_box/cornell_box.obj");
     let (s, warnings) = Scene::from_obj(&path, cam.clone()).unwrap();
     let mesh = raypack::scene::obj::load(&path).unwrap();
     assert!(warnings.is_empty());

@@ -797,15 +797,18 @@ fn check_shared_scene_at<W: PacketWidth>(
 
 #[test]
 fn packet_tree_matches_scalar_on_cornell_box() {
+    require_scenes!();
     check_shared_scene("cornell_box", 1);
 }
 
 #[test]
 fn packet_tree_matches_scalar_on_bunny() {
+    require_scenes!();
     check_shared_scene("bunny", 3);
 }
 
 #[test]
 fn packet_tree_matches_scalar_on_sponza() {
+    require_scenes!();
     check_shared_scene("sponza", 7);
 }

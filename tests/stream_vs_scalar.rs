@@ -416,6 +416,7 @@ fn every_shipped_scene_standard_sets() {
 
 #[test]
 fn shared_scenes_standard_sets() {
+    require_scenes!();
     for name in ["cornell_box", "bunny", "conference", "sponza"] {
         let (g, camera) = shared_scene(name);
         check_standard_sets(&g, &camera, 160, 128, name);

@@ -1,5 +1,11 @@
 //! Utilities shared by the integration tests: the benchmark scenes of ../shared/scenes
-//! (a minimal OBJ reader for positions and faces, and the cameras), and ray sets.
+//! (found or reported missing, a minimal OBJ reader for positions and faces, and the
+//! cameras), and ray sets.
+//!
+//! A clone without the scenes still passes: each test that needs them starts with
+//! [`require_scenes!`], which returns from it when they are missing, and the binary
+//! prints at exit how many of its tests did not run. CI sets `RAYPACK_REQUIRE_SCENES=1`,
+//! which turns a missing folder into a failure.
 
 #![allow(dead_code)]
 
@@ -9,9 +15,13 @@ pub mod closed;
 use glam::Vec3;
 use raypack::accel::kdtree::KdTree;
 use raypack::ray::{Hit, Ray};
+use raypack::scene::catalog;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
+use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, Once};
 
 /// A hit as the bits the scalar/packet and kd-tree/brute-force comparisons demand equal:
 /// primitive, then `t`, `u`, `v` as `to_bits`.
@@ -19,16 +29,110 @@ pub fn hit_bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
 }
 
-/// `../shared/scenes`, relative to the crate root. Panics, naming the path, when absent:
-/// tests that need the benchmark scenes never skip quietly.
-pub fn shared_scenes() -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    assert!(
-        dir.join("cameras.toml").is_file(),
-        "benchmark scenes missing: expected {} (with cameras.toml)",
-        dir.display()
-    );
+/// Set to 1 (CI does), missing benchmark scenes fail the tests that need them instead of
+/// skipping them.
+pub const REQUIRE_SCENES_ENV: &str = "RAYPACK_REQUIRE_SCENES";
+
+/// Whether the environment variable `name` is set to something other than empty or 0.
+pub fn env_flag(name: &str) -> bool {
+    std::env::var_os(name).is_some_and(|v| !v.is_empty() && v != "0")
+}
+
+/// Tests of this binary that returned early for want of the benchmark scenes.
+static SKIPPED_COUNT: AtomicUsize = AtomicUsize::new(0);
+/// Where those tests looked, each folder list once.
+static LOOKED: Mutex<Vec<String>> = Mutex::new(Vec::new());
+/// Registers [`report_skipped`] on the first skip.
+static REPORT_AT_EXIT: Once = Once::new();
+
+/// The benchmark scenes folder, found as `raypack` finds it
+/// ([`catalog::shared_scenes_dir`]: `$RAYPACK_SCENES` when it is set, else
+/// `../shared/scenes`). `None` when it is missing: the test is counted as not run, and
+/// the binary says so once at exit ([`require_scenes!`] returns from the test). With
+/// `RAYPACK_REQUIRE_SCENES=1` a missing folder fails the test instead, naming where it
+/// looked.
+pub fn scenes() -> Option<PathBuf> {
+    let dir = catalog::shared_scenes_dir();
+    if dir.is_none() {
+        let mut looked: Vec<String> = catalog::shared_scenes_candidates()
+            .iter()
+            .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone()))
+            .map(|p| p.display().to_string())
+            .collect();
+        looked.dedup();
+        not_found(looked.join(", "));
+    }
     dir
+}
+
+/// [`scenes`] for tests that read the scene files of scenes/gi: those name their meshes by
+/// a path relative to the file (`../../../shared/scenes/...`), so the folder must also be
+/// there, beside the crate, whatever `$RAYPACK_SCENES` says.
+pub fn scenes_beside_crate() -> Option<PathBuf> {
+    scenes()?;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    if dir.join("cameras.toml").is_file() {
+        Some(dir)
+    } else {
+        not_found(dir.display().to_string());
+        None
+    }
+}
+
+/// Fails the test when [`REQUIRE_SCENES_ENV`] is set; else counts it as not run.
+fn not_found(looked: String) {
+    assert!(
+        !env_flag(REQUIRE_SCENES_ENV),
+        "benchmark scenes not found (looked in {looked}, with cameras.toml) and \
+         {REQUIRE_SCENES_ENV} is set; see README.md, \"Benchmark scenes\", or set RAYPACK_SCENES"
+    );
+    SKIPPED_COUNT.fetch_add(1, Ordering::Relaxed);
+    let mut list = LOOKED.lock().unwrap_or_else(|e| e.into_inner());
+    if !list.contains(&looked) {
+        list.push(looked);
+    }
+    drop(list);
+    REPORT_AT_EXIT.call_once(|| {
+        unsafe extern "C" {
+            /// C's `atexit`, in every C library the standard library links.
+            fn atexit(f: extern "C" fn()) -> std::ffi::c_int;
+        }
+        // SAFETY: `report_skipped` is a plain `extern "C" fn()` that neither unwinds nor
+        // calls `exit`, as `atexit` requires.
+        unsafe { atexit(report_skipped) };
+    });
+}
+
+/// Runs at process exit, after the test harness's summary: one line for the binary.
+extern "C" fn report_skipped() {
+    let count = SKIPPED_COUNT.load(Ordering::Relaxed);
+    let looked = LOOKED.lock().map(|l| l.join("; ")).unwrap_or_default();
+    let tests = if count == 1 {
+        "1 test".to_string()
+    } else {
+        format!("{count} tests")
+    };
+    let _ = writeln!(
+        std::io::stderr(),
+        "raypack: {tests} in this binary did not run: benchmark scenes not found (looked in \
+         {looked}). See README.md, \"Benchmark scenes\", or set RAYPACK_SCENES."
+    );
+}
+
+/// The benchmark scenes folder, or a `return` from the calling test when it is missing
+/// (see [`scenes`]). Call it first thing in every test that needs the scenes; pass
+/// `common::scenes_beside_crate()` for the scene files of scenes/gi.
+#[macro_export]
+macro_rules! require_scenes {
+    () => {
+        $crate::require_scenes!($crate::common::scenes())
+    };
+    ($found:expr) => {
+        match $found {
+            Some(dir) => dir,
+            None => return,
+        }
+    };
 }
 
 /// The tutorial scene files of scenes/ (all seven or more), sorted. Panics, naming the
@@ -50,27 +154,13 @@ pub fn shipped_scenes() -> Vec<PathBuf> {
 }
 
 /// The geometry (positions and fan-triangulated faces, in RAYS.md order) and camera of
-/// benchmark scene `name` from cameras.toml.
+/// benchmark scene `name` from cameras.toml. The test must have called
+/// [`require_scenes!`] first.
 pub fn shared_scene(name: &str) -> (Geometry, Camera) {
-    let dir = shared_scenes();
-    let cameras_path = dir.join("cameras.toml");
-    let text = std::fs::read_to_string(&cameras_path).expect("read cameras.toml");
-    let table: toml::Table = text.parse().expect("parse cameras.toml");
-    let entry = table[name].as_table().expect("scene table");
-    let vec3 = |key: &str| {
-        let a = entry[key].as_array().expect(key);
-        let f = |i: usize| a[i].as_float().expect(key) as f32;
-        Vec3::new(f(0), f(1), f(2))
-    };
-    let camera = Camera {
-        eye: vec3("eye"),
-        target: vec3("target"),
-        up: vec3("up"),
-        vfov_deg: entry["vfov_deg"].as_float().expect("vfov_deg") as f32,
-    };
-    let obj = dir.join(entry["obj"].as_str().expect("obj"));
+    let (entry, obj) = catalog::shared_scene(name).unwrap_or_else(|e| panic!("{e}"));
+    let camera = Camera::from(&entry.view());
     let g = read_obj(&obj);
-    let expected = entry["triangles"].as_integer().expect("triangles") as usize;
+    let expected = entry.triangles.expect("triangles in cameras.toml") as usize;
     assert_eq!(g.triangles.len(), expected, "{}", obj.display());
     (g, camera)
 }
