@@ -12,10 +12,11 @@ use common::{
     adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
 };
 use glam::Vec3;
+use rayon::prelude::*;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::{BuildParams, BuilderKind, KdTree};
-use raypack::ray::Ray;
+use raypack::ray::{Hit, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane};
 
@@ -58,30 +59,52 @@ fn builds() -> [(BuildParams, &'static str); 3] {
     ]
 }
 
-/// Asserts closest-hit equality for every ray, and any-hit equality for each ray cut
-/// short before, at and after its hit (shadow rays). Returns the number of hits.
-fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -> usize {
-    let mut hits = 0;
+/// Brute force's answers for one ray: its closest hit, and the any-hit answers of the
+/// ray cut short before, at and after that hit (shadow rays).
+struct Oracle {
+    hit: Option<Hit>,
+    shadows: [(Ray, bool); 3],
+}
+
+/// Brute force's answers for `rays`, computed once (on every core) for all the trees
+/// checked against them.
+fn oracle(brute: &BruteForce, rays: &[Ray]) -> Vec<Oracle> {
     let mut rng = Rng::new(rays.len() as u64);
-    for (i, ray) in rays.iter().enumerate() {
-        let want = brute.intersect(ray);
+    let cuts: Vec<(f32, f32)> = rays
+        .iter()
+        .map(|_| (rng.range(0.2, 1.0), rng.range(1.0, 2.0)))
+        .collect();
+    rays.par_iter()
+        .zip(&cuts)
+        .map(|(ray, (before, after))| {
+            let hit = brute.intersect(ray);
+            let t_hit = hit.map_or(1.0, |h| h.t);
+            let shadows = [t_hit * before, t_hit, t_hit * after].map(|t_max| {
+                let shadow = Ray { t_max, ..*ray };
+                (shadow, brute.occluded(&shadow))
+            });
+            Oracle { hit, shadows }
+        })
+        .collect()
+}
+
+/// Asserts closest-hit and any-hit equality with brute force for every ray. Returns the
+/// number of hits.
+fn assert_matches(tree: &KdTree, rays: &[Ray], want: &[Oracle], what: &str) -> usize {
+    let mut hits = 0;
+    for (i, (ray, want)) in rays.iter().zip(want).enumerate() {
         let got = tree.intersect(ray);
         assert_eq!(
             hit_bits(got),
-            hit_bits(want),
-            "{what}: ray {i} {ray:?}\n  kd-tree {got:?}\n  brute   {want:?}"
+            hit_bits(want.hit),
+            "{what}: ray {i} {ray:?}\n  kd-tree {got:?}\n  brute   {:?}",
+            want.hit
         );
-        let t_hit = want.map_or(1.0, |h| h.t);
-        hits += want.is_some() as usize;
-        for t_max in [
-            t_hit * rng.range(0.2, 1.0),
-            t_hit,
-            t_hit * rng.range(1.0, 2.0),
-        ] {
-            let shadow = Ray { t_max, ..*ray };
+        hits += want.hit.is_some() as usize;
+        for (shadow, occluded) in &want.shadows {
             assert_eq!(
-                tree.occluded(&shadow),
-                brute.occluded(&shadow),
+                tree.occluded(shadow),
+                *occluded,
                 "{what}: shadow ray {i} {shadow:?}"
             );
         }
@@ -89,30 +112,12 @@ fn assert_matches(tree: &KdTree, brute: &BruteForce, rays: &[Ray], what: &str) -
     hits
 }
 
-/// Builds `g`, checks it, and compares the tree with brute force on random and
-/// adversarial rays and on the camera rays of `camera` (64 x 48).
+/// Builds `g` with each of [`builds`], checks the trees, and compares each with brute
+/// force on random rays, on the camera rays of `camera` (64 x 48), and on the adversarial
+/// rays of every tree (origins on any of the trees' split planes). Brute force answers
+/// each ray once.
 fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what: &str) {
-    for (params, builder) in builds() {
-        check_scene_with(
-            g,
-            camera,
-            seed,
-            ray_count,
-            &params,
-            &format!("{what}, {builder}"),
-        );
-    }
-}
-
-fn check_scene_with(
-    g: &Geometry,
-    camera: &Camera,
-    seed: u64,
-    ray_count: usize,
-    params: &BuildParams,
-    what: &str,
-) {
-    let tree = build_checked(g, params);
+    let trees = builds().map(|(params, builder)| (build_checked(g, &params), builder));
     let brute = BruteForce::new(g);
     let b = g.bounds();
     let b = if b.is_empty() {
@@ -121,14 +126,20 @@ fn check_scene_with(
         b
     };
     let mut rays = random_rays(b.min, b.max, ray_count, seed);
-    rays.extend(adversarial_rays(&tree, g, ray_count, seed + 1));
+    for (tree, _) in &trees {
+        rays.extend(adversarial_rays(tree, g, ray_count, seed + 1));
+    }
     rays.extend(camera_rays(camera, 64, 48, 1));
-    let hits = assert_matches(&tree, &brute, &rays, what);
-    if g.bounded_count() > 0 {
-        assert!(
-            hits > rays.len() / 20,
-            "{what}: only {hits} hits, rays miss the scene"
-        );
+    let want = oracle(&brute, &rays);
+    for (tree, builder) in &trees {
+        let what = format!("{what}, {builder}");
+        let hits = assert_matches(tree, &rays, &want, &what);
+        if g.bounded_count() > 0 {
+            assert!(
+                hits > rays.len() / 20,
+                "{what}: only {hits} hits, rays miss the scene"
+            );
+        }
     }
 }
 
@@ -198,9 +209,9 @@ fn empty_and_planes_only_scenes() {
         offset: 0.0,
     });
     let tree = build_checked(&g, &BuildParams::default());
-    let brute = BruteForce::new(&g);
     let rays = camera_rays(&camera, 32, 32, 1);
-    let hits = assert_matches(&tree, &brute, &rays, "plane only");
+    let want = oracle(&BruteForce::new(&g), &rays);
+    let hits = assert_matches(&tree, &rays, &want, "plane only");
     assert!(hits > 0 && hits < rays.len());
     // Only degenerate triangles: they stay out of the tree and are never hit.
     let g = Geometry {
@@ -306,57 +317,47 @@ fn fast_tree_costs_at_most_one_percent_more_than_the_exact_tree() {
 }
 
 /// Camera rays of a benchmark scene (every `stride`-th pixel of 1024x768) and shadow
-/// rays toward a point above the scene, against brute force, for each builder.
+/// rays toward a point above the scene, against brute force (asked once per ray), for
+/// each builder.
 fn check_shared_scene(name: &str, stride: usize) {
     let (g, camera) = shared_scene(name);
     let brute = BruteForce::new(&g);
-    for (params, builder) in builds() {
-        check_shared_scene_with(
-            &g,
-            &camera,
-            &brute,
-            &params,
-            stride,
-            &format!("{name}, {builder}"),
-        );
-    }
-}
-
-fn check_shared_scene_with(
-    g: &Geometry,
-    camera: &Camera,
-    brute: &BruteForce,
-    params: &BuildParams,
-    stride: usize,
-    name: &str,
-) {
-    let tree = build_checked(g, params);
-    let rays = camera_rays(camera, 1024, 768, stride);
-    let hits = assert_matches(&tree, brute, &rays, name);
-    assert!(
-        hits > rays.len() / 10,
-        "{name}: only {hits} of {} rays hit",
-        rays.len()
-    );
+    let rays = camera_rays(&camera, 1024, 768, stride);
+    let want = oracle(&brute, &rays);
     let b = g.bounds();
     let light = Vec3::new((b.min.x + b.max.x) * 0.5, b.max.y * 0.9, b.min.z * 0.3);
-    for (i, ray) in rays.iter().enumerate() {
-        let Some(hit) = brute.intersect(ray) else {
-            continue;
-        };
-        let p = ray.at(hit.t);
-        let to_light = light - p;
-        let shadow = Ray::new(
-            p,
-            to_light.normalize(),
-            1e-4 * b.diagonal(),
-            to_light.length(),
+    let shadows: Vec<(usize, Ray, bool)> = rays
+        .iter()
+        .zip(&want)
+        .enumerate()
+        .filter_map(|(i, (ray, want))| {
+            let p = ray.at(want.hit?.t);
+            let to_light = light - p;
+            let shadow = Ray::new(
+                p,
+                to_light.normalize(),
+                1e-4 * b.diagonal(),
+                to_light.length(),
+            );
+            Some((i, shadow, brute.occluded(&shadow)))
+        })
+        .collect();
+    for (params, builder) in builds() {
+        let what = format!("{name}, {builder}");
+        let tree = build_checked(&g, &params);
+        let hits = assert_matches(&tree, &rays, &want, &what);
+        assert!(
+            hits > rays.len() / 10,
+            "{what}: only {hits} of {} rays hit",
+            rays.len()
         );
-        assert_eq!(
-            tree.occluded(&shadow),
-            brute.occluded(&shadow),
-            "{name}: shadow ray {i} {shadow:?}"
-        );
+        for (i, shadow, occluded) in &shadows {
+            assert_eq!(
+                tree.occluded(shadow),
+                *occluded,
+                "{what}: shadow ray {i} {shadow:?}"
+            );
+        }
     }
 }
 

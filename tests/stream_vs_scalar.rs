@@ -76,16 +76,29 @@ impl Accel for Lanes<'_> {
 }
 
 /// Asserts the tree's stream queries, and its lane walks at every width, equal the
-/// scalar ones on `rays` ([`assert_stream_matches`]). Returns the number of closest
-/// hits.
+/// scalar ones on `rays` ([`assert_stream_matches`]; the scalar answers are computed
+/// once). Returns the number of closest hits.
 fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
+    let want = scalar_answers(tree, rays);
     for w in WIDTHS {
         for g in GROUPS {
             let how = format!("{what}, {w} lanes, {g} groups");
-            assert_stream_matches(&Lanes(tree, w, g), rays, &how);
+            assert_stream_gives(&Lanes(tree, w, g), rays, &want, &how);
         }
     }
-    assert_stream_matches(tree, rays, what)
+    assert_stream_gives(tree, rays, &want, what)
+}
+
+/// The scalar answers of `rays`: closest hits as bits (a miss as [`Hit::MISS`]) and
+/// any-hit answers.
+type Answers = (Vec<Option<(u32, u32, u32, u32)>>, Vec<bool>);
+
+fn scalar_answers<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> Answers {
+    let hits = rays
+        .iter()
+        .map(|r| hit_bits(Some(a.intersect(r).unwrap_or(Hit::MISS))))
+        .collect();
+    (hits, rays.iter().map(|r| a.occluded(r)).collect())
 }
 
 /// The stream answers of `rays`, in one call.
@@ -101,11 +114,16 @@ fn stream_answers<A: Accel + ?Sized>(a: &A, rays: &[Ray]) -> (Vec<Hit>, Vec<bool
 /// Asserts both stream queries equal the scalar ones on `rays` traced as one stream,
 /// reversed, and in uneven pieces. Returns the number of closest hits.
 fn assert_stream_matches<A: Accel + ?Sized>(a: &A, rays: &[Ray], what: &str) -> usize {
-    let want_hits: Vec<_> = rays
-        .iter()
-        .map(|r| hit_bits(Some(a.intersect(r).unwrap_or(Hit::MISS))))
-        .collect();
-    let want_occluded: Vec<bool> = rays.iter().map(|r| a.occluded(r)).collect();
+    assert_stream_gives(a, rays, &scalar_answers(a, rays), what)
+}
+
+/// [`assert_stream_matches`] against scalar answers already computed.
+fn assert_stream_gives<A: Accel + ?Sized>(
+    a: &A,
+    rays: &[Ray],
+    (want_hits, want_occluded): &Answers,
+    what: &str,
+) -> usize {
     let check = |rays: &[Ray], want_h: &[Option<(u32, u32, u32, u32)>], want_o: &[bool], how| {
         let (hits, occluded) = stream_answers(a, rays);
         for (i, r) in rays.iter().enumerate() {
@@ -120,7 +138,7 @@ fn assert_stream_matches<A: Accel + ?Sized>(a: &A, rays: &[Ray], what: &str) -> 
             );
         }
     };
-    check(rays, &want_hits, &want_occluded, "one stream");
+    check(rays, want_hits, want_occluded, "one stream");
     let rev = |v: &[Ray]| v.iter().rev().copied().collect::<Vec<_>>();
     let (mut wh, mut wo) = (want_hits.clone(), want_occluded.clone());
     wh.reverse();
