@@ -10,6 +10,7 @@ use common::closed::{leaks_packet, leaks_scalar};
 use common::hit_bits;
 use common::{adversarial_rays, mixed_primitives, random_rays};
 use glam::Vec3;
+use rayon::prelude::*;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::KdTree;
@@ -20,42 +21,45 @@ use raypack::scene::generate::{self, Rng};
 use raypack::simd::{W4, W8, W16};
 
 /// Asserts that the kd-tree (scalar and packet) and brute force agree bit for bit on
-/// every ray's closest hit and occlusion; returns the number of hits.
+/// every ray's closest hit and occlusion, on every core; returns the number of hits.
 fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize {
     let brute = BruteForce::new(g);
-    let mut hits = 0;
-    for (c, chunk) in rays.chunks(8).enumerate() {
-        let packet = RayPacket::<W8>::from_rays(chunk);
-        let packet_hits = tree.intersect_packet(&packet);
-        let packet_occluded = tree.occluded_packet(&packet);
-        for (i, ray) in chunk.iter().enumerate() {
-            let want = brute.intersect(ray);
-            let got = tree.intersect(ray);
-            let lane = packet_hits.lane(i);
-            let from_packet = lane.is_hit().then_some(lane);
-            assert_eq!(
-                hit_bits(got),
-                hit_bits(want),
-                "{what}: ray {} {ray:?} kd-tree vs brute",
-                c * 8 + i
-            );
-            assert_eq!(
-                hit_bits(from_packet),
-                hit_bits(want),
-                "{what}: ray {} {ray:?} packet vs brute",
-                c * 8 + i
-            );
-            let occluded = brute.occluded(ray);
-            assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
-            assert_eq!(
-                packet_occluded & (1 << i) != 0,
-                occluded,
-                "{what}: ray {ray:?} packet occluded"
-            );
-            hits += want.is_some() as usize;
-        }
-    }
-    hits
+    rays.par_chunks(8)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut hits = 0;
+            let packet = RayPacket::<W8>::from_rays(chunk);
+            let packet_hits = tree.intersect_packet(&packet);
+            let packet_occluded = tree.occluded_packet(&packet);
+            for (i, ray) in chunk.iter().enumerate() {
+                let want = brute.intersect(ray);
+                let got = tree.intersect(ray);
+                let lane = packet_hits.lane(i);
+                let from_packet = lane.is_hit().then_some(lane);
+                assert_eq!(
+                    hit_bits(got),
+                    hit_bits(want),
+                    "{what}: ray {} {ray:?} kd-tree vs brute",
+                    c * 8 + i
+                );
+                assert_eq!(
+                    hit_bits(from_packet),
+                    hit_bits(want),
+                    "{what}: ray {} {ray:?} packet vs brute",
+                    c * 8 + i
+                );
+                let occluded = brute.occluded(ray);
+                assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
+                assert_eq!(
+                    packet_occluded & (1 << i) != 0,
+                    occluded,
+                    "{what}: ray {ray:?} packet occluded"
+                );
+                hits += want.is_some() as usize;
+            }
+            hits
+        })
+        .sum()
 }
 
 #[test]
@@ -138,7 +142,7 @@ fn tiny_huge_and_far_scenes_agree_with_brute_force_and_stay_watertight() {
         let closed_tree = KdTree::build(&closed);
         let mut rng = Rng::new(9);
         let centre = Vec3::new(0.2, -0.1, 0.3) * scale + offset;
-        let interior: Vec<Ray> = (0..100_000)
+        let interior: Vec<Ray> = (0..common::ray_count(1 << 14, 100_000))
             .map(|_| {
                 let p = rng.point(Vec3::splat(-0.5), Vec3::splat(0.5)) * scale + centre;
                 Ray::new(p, rng.unit_vector(), 0.0, f32::INFINITY)

@@ -35,16 +35,7 @@ use raypack::accel::triaccel::TriAccel;
 use raypack::ray::{Hit, NO_HIT, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16, block_pixel};
-
-/// Runs a test body at every width.
-macro_rules! at_every_width {
-    ($f:ident $(, $arg:expr)*) => {
-        $f::<W4>($($arg),*);
-        $f::<W8>($($arg),*);
-        $f::<W16>($($arg),*);
-    };
-}
+use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, block_pixel};
 
 /// Draws the kernel tests need beyond [`Rng`]'s own.
 trait Draw {
@@ -428,14 +419,15 @@ fn show_hit(h: Option<Hit>) -> String {
 }
 
 /// One ray's closest hit (a miss as [`Hit::MISS`]) and any-hit answer against the
-/// scalar path's, bit for bit.
-fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: &str) {
+/// scalar path's, bit for bit; `at` names the ray on failure.
+fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: impl Fn() -> String) {
     let want = tree.intersect(r);
     let have = got.is_hit().then_some(got);
     assert_eq!(
         hit_bits(have),
         hit_bits(want),
-        "{at}\n  ray: {}\n  scalar: {}\n  packet: {}",
+        "{}\n  ray: {}\n  scalar: {}\n  packet: {}",
+        at(),
         show(r),
         show_hit(want),
         show_hit(have)
@@ -443,7 +435,8 @@ fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: &str
     assert_eq!(
         occluded,
         tree.occluded(r),
-        "{at}: any-hit\n  ray: {}",
+        "{}: any-hit\n  ray: {}",
+        at(),
         show(r)
     );
 }
@@ -473,8 +466,8 @@ fn assert_tree_matches<W: PacketWidth>(
                 continue;
             };
             hits += lane.is_hit() as usize;
-            let at = format!("{what}: packet {n} lane {i}");
-            assert_ray_matches(tree, r, lane, occluded & (1 << i) != 0, &at);
+            let at = || format!("{what}: packet {n} lane {i}");
+            assert_ray_matches(tree, r, lane, occluded & (1 << i) != 0, at);
         }
     }
     hits
@@ -491,8 +484,8 @@ fn assert_tiles_match<W: Simd>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
         tree.intersect_tile::<W>(tile, &mut got);
         let occluded = tree.occluded_tile::<W>(tile);
         for (i, r) in tile.iter().enumerate() {
-            let at = format!("{what}: tile {n} ray {i}");
-            assert_ray_matches(tree, r, got[i], occluded & (1 << i) != 0, &at);
+            let at = || format!("{what}: tile {n} ray {i}");
+            assert_ray_matches(tree, r, got[i], occluded & (1 << i) != 0, at);
         }
         let past = occluded.checked_shr(tile.len() as u32).unwrap_or(0);
         assert_eq!(past, 0, "{what}: bits past the tile");
@@ -520,18 +513,21 @@ fn packets_of<W: Simd>(rays: &[Ray], mut rng: Option<&mut Rng>) -> Vec<Vec<Optio
 }
 
 /// Camera rays as blocks of `W`'s packet shape, at the top-left corners of RAYS.md's
-/// quads (blocks overlap at widths above 4; each one is a packet on its own).
+/// quads (blocks overlap at widths above 4; each one is a packet on its own). With
+/// `aligned`, only the corners at multiples of the block size: each pixel in one block.
 fn block_packets<W: Simd>(
     camera: &Camera,
     width: u32,
     height: u32,
     stride: usize,
+    aligned: bool,
 ) -> Vec<Vec<Ray>> {
     let frame = camera.frame(width, height);
     let (bw, bh) = W::SHAPE;
     common::quad_corners(width, height)
         .into_iter()
         .filter(|&(x, y)| x + bw <= width && y + bh <= height)
+        .filter(|&(x, y)| !aligned || (x % bw == 0 && y % bh == 0))
         .step_by(stride)
         .map(|(x, y)| frame.block_rays::<W>(x, y))
         .collect()
@@ -619,7 +615,7 @@ fn check_tree_scene_at<W: PacketWidth>(
     } else {
         b
     };
-    let quads = block_packets::<W>(camera, 128, 96, 1);
+    let quads = block_packets::<W>(camera, 128, 96, 1, false);
     let camera_packets: Vec<_> = quads
         .iter()
         .map(|q| q.iter().copied().map(Some).collect())
@@ -740,7 +736,8 @@ fn packet_tree_matches_scalar_on_mixed_primitives_and_planes() {
     check_tree_scene(&planes, &camera, 44, 2_000, "planes only");
 }
 
-/// Camera quads (every `stride`-th) and shadow packets of a benchmark scene.
+/// Camera blocks (every `stride`-th of those that hold each pixel once, at every width)
+/// and shadow packets of a benchmark scene.
 fn check_shared_scene(name: &str, stride: usize) {
     let (g, camera) = shared_scene(name);
     let tree = KdTree::build_with(&g, &BuildParams::default());
@@ -756,7 +753,7 @@ fn check_shared_scene_at<W: PacketWidth>(
     tree: &KdTree,
     stride: usize,
 ) {
-    let quads = block_packets::<W>(camera, 1024, 768, stride);
+    let quads = block_packets::<W>(camera, 1024, 768, stride, true);
     let packets: Vec<_> = quads
         .iter()
         .map(|q| q.iter().copied().map(Some).collect())

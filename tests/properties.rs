@@ -16,7 +16,7 @@ use raypack::accel::packet::RayPacket;
 use raypack::ray::Ray;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Geometry, Plane, Sphere};
-use raypack::simd::{Float, LaneMask, Mask, Simd, Vf, W4, W8, W16};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Vf};
 
 const SCENES: u64 = 64;
 const PACKETS: usize = 600;
@@ -119,9 +119,7 @@ fn random_lane(rng: &mut Rng, g: &Geometry, accel: &BruteForce) -> Ray {
 
 #[test]
 fn packet_equals_scalar_equals_brute_force_on_random_scenes() {
-    packet_equals_scalar_at::<W4>();
-    packet_equals_scalar_at::<W8>();
-    packet_equals_scalar_at::<W16>();
+    at_every_width!(packet_equals_scalar_at);
 }
 
 fn packet_equals_scalar_at<W: Simd>() {
@@ -158,12 +156,13 @@ fn packet_equals_scalar_at<W: Simd>() {
             let got = tree.intersect_packet(&packet);
             let occluded = tree.occluded_packet(&packet);
             for (i, ray) in rays.iter().enumerate() {
-                let what = format!("scene {seed}, packet {n}, lane {i}: {ray:?}");
+                let what = || format!("scene {seed}, packet {n}, lane {i}: {ray:?}");
                 let lane = got.lane(i);
                 if live & (1 << i) == 0 {
                     assert!(
                         !lane.is_hit() && occluded & (1 << i) == 0,
-                        "{what} (inactive)"
+                        "{} (inactive)",
+                        what()
                     );
                     continue;
                 }
@@ -171,16 +170,28 @@ fn packet_equals_scalar_at<W: Simd>() {
                 assert_eq!(
                     hit_bits(scalar),
                     hit_bits(brute.intersect(ray)),
-                    "{what}: kd-tree vs brute"
+                    "{}: kd-tree vs brute",
+                    what()
                 );
                 assert_eq!(
                     hit_bits(lane.is_hit().then_some(lane)),
                     hit_bits(scalar),
-                    "{what}: packet vs scalar"
+                    "{}: packet vs scalar",
+                    what()
                 );
                 let blocked = tree.occluded(ray);
-                assert_eq!(blocked, brute.occluded(ray), "{what}: occluded vs brute");
-                assert_eq!(occluded & (1 << i) != 0, blocked, "{what}: packet occluded");
+                assert_eq!(
+                    blocked,
+                    brute.occluded(ray),
+                    "{}: occluded vs brute",
+                    what()
+                );
+                assert_eq!(
+                    occluded & (1 << i) != 0,
+                    blocked,
+                    "{}: packet occluded",
+                    what()
+                );
                 hits += scalar.is_some() as usize;
             }
         }

@@ -33,9 +33,23 @@ pub fn hit_bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
 /// skipping them.
 pub const REQUIRE_SCENES_ENV: &str = "RAYPACK_REQUIRE_SCENES";
 
+/// Set to 1 (CI does), the leak tests trace their full ray counts (see [`ray_count`]).
+pub const EXHAUSTIVE_ENV: &str = "RAYPACK_EXHAUSTIVE";
+
 /// Whether the environment variable `name` is set to something other than empty or 0.
 pub fn env_flag(name: &str) -> bool {
     std::env::var_os(name).is_some_and(|v| !v.is_empty() && v != "0")
+}
+
+/// `quick` rays, or `exhaustive` ones with `RAYPACK_EXHAUSTIVE=1`: for the tests that look
+/// for rare events (a ray leaking through a closed mesh) where only the count decides how
+/// rare an event can still be seen.
+pub fn ray_count(quick: usize, exhaustive: usize) -> usize {
+    if env_flag(EXHAUSTIVE_ENV) {
+        exhaustive
+    } else {
+        quick
+    }
 }
 
 /// Tests of this binary that returned early for want of the benchmark scenes.
@@ -132,6 +146,20 @@ macro_rules! require_scenes {
             Some(dir) => dir,
             None => return,
         }
+    };
+}
+
+/// Runs a test body generic over the packet width at every width (4, 8 and 16 lanes),
+/// each on its own thread, so the three share both cores. Each width stays on one thread:
+/// the traversal counters the bodies read are per thread.
+#[macro_export]
+macro_rules! at_every_width {
+    ($f:ident $(, $arg:expr)*) => {
+        std::thread::scope(|s| {
+            s.spawn(|| $f::<raypack::simd::W4>($($arg),*));
+            s.spawn(|| $f::<raypack::simd::W8>($($arg),*));
+            $f::<raypack::simd::W16>($($arg),*);
+        })
     };
 }
 
