@@ -489,3 +489,29 @@ fn kdtree_huge_direction_hits_nothing_2() {
         ],
     });
 }
+
+/// Artifact crash-25527c4e of the `kdtree` target's run with the stream kernels and tiles
+/// (found in its scalar check): a ray grazing a sliver (corners about 1e-26 apart on x
+/// and y, 4e16 long on z) near a corner. The exact edge rule's terms of `t` underflowed
+/// to zero in f32, so brute force reported a hit at `t = 0`, before the kd-tree's box,
+/// where the line meets the triangle at `t = 3.2e-27`, past the ray's `t_max`. Fixed by
+/// computing the rule in f64 where an edge function or a term of `t` is not a normal
+/// f32: every path now answers no hit.
+#[test]
+fn kdtree_exact_rule_underflow_misses_past_t_max() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [7.571787e-27, 1.56733e-39, -5.0688257e-26],
+            [1.285e-42, 1.49e-43, -6.04157e-26],
+            [-6.041655e-26, 2.8982e-41, 4.1680287e16],
+        ],
+        triangles: vec![[122, 255, 202]],
+        extras: false,
+        rays: vec![(
+            [-6.058369e-26, 1.225e-42, 0.0],
+            [18.698038, -6.041655e-26, 1.945832e-13],
+            -411206.25,
+            1.8439126e-38,
+        )],
+    });
+}

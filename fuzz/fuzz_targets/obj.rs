@@ -12,7 +12,9 @@ use std::sync::OnceLock;
 
 fn path() -> &'static PathBuf {
     static PATH: OnceLock<PathBuf> = OnceLock::new();
-    PATH.get_or_init(|| std::env::temp_dir().join(format!("raypack-fuzz-{}.obj", std::process::id())))
+    PATH.get_or_init(|| {
+        std::env::temp_dir().join(format!("raypack-fuzz-{}.obj", std::process::id()))
+    })
 }
 
 fuzz_target!(|data: &[u8]| {

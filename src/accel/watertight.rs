@@ -22,8 +22,9 @@
 //! [`crate::accel::triaccel`] calls this only for rays whose fast answer lies within its
 //! rounding bound of an edge, and then reports this test's `t`, `u`, `v`. The packet
 //! test decides all such lanes at once with [`intersect_lanes`], the same operations
-//! in lanes, and leaves the rare lanes with an exactly zero edge function (the f64
-//! recomputation) to [`intersect`] itself, so the paths agree bit for bit.
+//! in lanes, and leaves the rare lanes that need f64 (an edge function or a term of
+//! `t` that is zero, subnormal or infinite in f32) to [`intersect`] itself, so the
+//! paths agree bit for bit.
 
 use super::axis::MOD3;
 use crate::ray::Ray;
@@ -37,7 +38,10 @@ use glam::Vec3;
 ///
 /// `t` is interpolated from the corners' distances along the ray, as in the paper, so
 /// the point at `t` lies within rounding of the triangle even for grazing rays, where a
-/// plane's `t` does not (a kd-tree finds the hit in the triangle's own cells).
+/// plane's `t` does not (a kd-tree finds the hit in the triangle's own cells). Where an
+/// edge function or a term of that interpolation leaves f32's normal range, all of it
+/// is computed in f64: an underflow would round a tiny `t` to zero and put the hit
+/// outside those cells.
 pub fn intersect(ray: &Ray, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
     let (org, dir) = (ray.org, ray.dir);
     let ad = dir.abs();
@@ -59,29 +63,38 @@ pub fn intersect(ray: &Ray, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
     let [a, b, c] = corners.map(project);
     let edge = |p: [f32; 3], q: [f32; 3]| p[0] * q[1] - p[1] * q[0];
     let (eu, ev, ew) = (edge(b, c), edge(c, a), edge(a, b));
-    let exact = |e: f32| e != 0.0 && e.is_finite();
-    let signs = if !(exact(eu) && exact(ev) && exact(ew)) {
-        let edge64 =
-            |p: [f32; 3], q: [f32; 3]| p[0] as f64 * q[1] as f64 - p[1] as f64 * q[0] as f64;
-        [edge64(b, c), edge64(c, a), edge64(a, b)].map(sign)
-    } else {
-        [eu, ev, ew].map(|e| sign(e as f64))
-    };
+    let (tu, tv, tw) = (eu * a[2], ev * b[2], ew * c[2]);
+    if [eu, ev, ew, tu, tv, tw].into_iter().all(f32::is_normal) {
+        let signs = [eu, ev, ew].map(|e| sign(e as f64));
+        if signs.contains(&-1) == signs.contains(&1) {
+            return None;
+        }
+        let det = eu + ev + ew;
+        let t = (tu + tv + tw) / det;
+        return Some((t, ev / det, ew / det));
+    }
+    // An edge function or a term of `t` that is zero, subnormal or infinite in f32:
+    // the products of f32 values are exact in f64, and neither underflows nor
+    // overflows there.
+    let f = |x: f32| x as f64;
+    let edge64 = |p: [f32; 3], q: [f32; 3]| f(p[0]) * f(q[1]) - f(p[1]) * f(q[0]);
+    let e = [edge64(b, c), edge64(c, a), edge64(a, b)];
+    let signs = e.map(sign);
     if signs.contains(&-1) == signs.contains(&1) {
         return None;
     }
-    let det = eu + ev + ew;
-    let t = (eu * a[2] + ev * b[2] + ew * c[2]) / det;
-    Some((t, ev / det, ew / det))
+    let det = e[0] + e[1] + e[2];
+    let t = (e[0] * f(a[2]) + e[1] * f(b[2]) + e[2] * f(c[2])) / det;
+    Some((t as f32, (e[1] / det) as f32, (e[2] / det) as f32))
 }
 
 /// [`intersect`] in lanes: lane `i` holds one ray (`org`, `dir`) and one triangle
 /// (`corners`); either may be the same in every lane (a packet against one triangle,
 /// or one ray against a leaf's triangles). Every operation is the scalar one, lane by
 /// lane, so where `decided` is set the answer (`hit`, and `t`, `u`, `v` where it hit)
-/// is [`intersect`]'s bit for bit. The other lanes have an edge function that is zero
-/// or not finite in f32 (a ray exactly through an edge or a corner, or NaNs): only the
-/// scalar test's f64 recomputation decides them.
+/// is [`intersect`]'s bit for bit. The other lanes have an edge function or a term of
+/// `t` that is zero, subnormal or not finite in f32 (a ray exactly through an edge or a
+/// corner, an underflow, NaNs): only the scalar test's f64 recomputation decides them.
 #[derive(Clone, Copy, Debug)]
 pub struct LaneAnswer<F: Float> {
     /// Lanes the f32 edge functions decide.
@@ -124,13 +137,15 @@ pub fn intersect_lanes<F: Float>(
     let [a, b, c] = corners.map(|p| project(&p));
     let edge = |p: &[F; 3], q: &[F; 3]| p[0] * q[1] - p[1] * q[0];
     let (eu, ev, ew) = (edge(&b, &c), edge(&c, &a), edge(&a, &b));
-    let exact = |e: F| !e.cmp_eq(F::ZERO) & e.finite();
-    let decided = exact(eu) & exact(ev) & exact(ew);
+    let (tu, tv, tw) = (eu * a[2], ev * b[2], ew * c[2]);
+    // `f32::is_normal`: NaN fails the comparison.
+    let normal = |x: F| x.abs().cmp_ge(F::splat(f32::MIN_POSITIVE)) & x.finite();
+    let decided = normal(eu) & normal(ev) & normal(ew) & normal(tu) & normal(tv) & normal(tw);
     let z = F::ZERO;
     let same_sign =
         (eu.cmp_gt(z) & ev.cmp_gt(z) & ew.cmp_gt(z)) | (eu.cmp_lt(z) & ev.cmp_lt(z) & ew.cmp_lt(z));
     let det = eu + ev + ew;
-    let t = (eu * a[2] + ev * b[2] + ew * c[2]) / det;
+    let t = (tu + tv + tw) / det;
     LaneAnswer {
         decided,
         hit: decided & same_sign,
