@@ -515,3 +515,48 @@ fn kdtree_exact_rule_underflow_misses_past_t_max() {
         )],
     });
 }
+
+/// Artifact crash-9979e7b1 of the `kdtree` target's second run with the stream kernels
+/// and tiles (found in its scalar check): a ray with a tiny direction (4e-17, nearly
+/// along -x) grazing a sliver 6e8 long on x and 1e-8 thin on y. The exact edge rule's
+/// `t` (0, its terms near 4e18 cancelling) is within rounding of the triangle, as the
+/// rule promises, but at a point 2e-10 above the tree's box in y, while the box's
+/// margin on y scaled only with y's coordinates (1e-8): brute force hit, the kd-tree's
+/// clipped interval was empty. Fixed by scaling the box and plane margins with the
+/// box's largest coordinate on any axis. The rays' directions are written as the
+/// target passed them (`same_signs`: each takes the first ray's signs).
+#[test]
+fn kdtree_sliver_grazing_hit_outside_the_box_on_a_thin_axis() {
+    check_kdtree(KdInput {
+        vertices: vec![
+            [-168.93332, -1.15996315e-8, 4.827791e-28],
+            [91394.0, 1.1924442e-38, 50944.0],
+            [1.6410672e-38, -2.98456e-38, -1.1768035e-35],
+            [610181200.0, -1.6991024e-38, 4.4711393e-33],
+        ],
+        triangles: vec![
+            [201, 154, 55],
+            [185, 159, 16],
+            [90, 20, 21],
+            [80, 47, 86],
+            [255, 255, 255],
+            [255, 255, 255],
+            [255, 128, 71],
+        ],
+        extras: false,
+        rays: vec![
+            (
+                [1.3548744e-7, -1.8437068e28, -0.00012594622],
+                [f32::NAN, f32::NAN, -0.00024318694],
+                -8.354368e-23,
+                9.881476e-12,
+            ),
+            (
+                [9.8439425e-12, 1.9463542e-10, 6.081131e-13],
+                [-3.9104265e-17, -4.0391754e-19, -2.6887e-39],
+                -1.2218714e-35,
+                38135810.0,
+            ),
+        ],
+    });
+}

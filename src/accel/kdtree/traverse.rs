@@ -14,9 +14,11 @@
 //!   axis-parallel ray through a shared corner, say). For a crossing ray the margin
 //!   becomes an interval in `t`; for a parallel one, a band around the plane. The
 //!   coordinates involved are the ray origin's largest coordinate ([`max_abs`], as the
-//!   triangle test's error bound has it) and the tree box's largest coordinate on the
-//!   split axis, which bounds every split position on it: the margin is then one number per ray and
-//!   axis, computed once. A wider margin only visits more cells, never fewer.
+//!   triangle test's error bound has it) and the tree box's largest coordinate on any
+//!   axis ([`box_coord_max`]), which bounds every split position and every corner (a
+//!   sliver long along one axis rounds a grazing hit off along the others): the margin
+//!   is then one number per ray, computed once. A wider margin only visits more cells,
+//!   never fewer.
 //! - A node step computes the band's two ends in `t` as `split * inv + off` with one
 //!   [`mul_add`] each, the offsets `-(org * inv) -+ slack` computed once per ray and axis
 //!   (`RayAxes`): one fused operation between the node's load and its decision instead
@@ -70,12 +72,11 @@ impl KdTree {
         clip_to_box(&self.bounds, ray, inv_dir)
     }
 
-    /// The largest absolute coordinate of the tree's box on each axis: no split on that
-    /// axis lies farther from the origin, so it stands in for the split position in the
-    /// plane margin.
+    /// [`box_coord_max`] of the tree's box on every axis: no split lies farther from the
+    /// origin, so it stands in for the split position in the plane margin.
     #[inline]
     pub(super) fn coord_max(&self) -> Vec3 {
-        self.bounds.min.abs().max(self.bounds.max.abs())
+        Vec3::splat(box_coord_max(&self.bounds))
     }
 
     /// Closest hit among the tree's primitives (planes excluded), folded into `best`;
@@ -424,12 +425,12 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     // The triangle test's rounding grows with the origin's largest coordinate on every
     // axis (a ray from far away along z can land a hit off in y by that much), so the box
-    // is widened by it, not by the origin's coordinate on its own axis alone.
-    let o_max = max_abs(ray.org);
+    // is widened by it and by the box's ([`box_coord_max`]), not by the coordinates of
+    // its own axis alone.
+    let margin = (box_coord_max(b) + max_abs(ray.org)) * PLANE_SLACK;
     for axis in 0..3 {
         let o = ray.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);
-        let margin = (lo.abs().max(hi.abs()) + o_max) * PLANE_SLACK;
         if ray.dir[axis] == 0.0 {
             if !(o >= lo - margin && o <= hi + margin) {
                 return None;
@@ -448,6 +449,16 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
         t1 = t1.min(t_hi + slack);
     }
     (t0 <= t1).then_some((t0, t1))
+}
+
+/// The largest absolute coordinate of `b` on any axis. The triangle test's rounding
+/// grows with the triangle's largest coordinate on every axis, as it does with the
+/// origin's (a sliver long along x can land a grazing ray's hit off in y by that much),
+/// so the box and plane margins are scaled by it, not by the coordinates of their own
+/// axis alone.
+#[inline]
+pub(super) fn box_coord_max(b: &Aabb) -> f32 {
+    max_abs(b.min).max(max_abs(b.max))
 }
 
 impl Accel for KdTree {

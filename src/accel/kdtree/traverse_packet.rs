@@ -28,7 +28,7 @@
 
 use super::KdTree;
 use super::stats::bump;
-use super::traverse::{PLANE_SLACK, Stack};
+use super::traverse::{PLANE_SLACK, Stack, box_coord_max};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::Hit;
@@ -80,11 +80,10 @@ pub(super) fn clip_to_box_packet<W: Simd>(
     let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
     let (mut t0, mut t1) = (rays.t_min, rays.t_max);
     let mut live = active & rays.usable();
-    let o_max = max_abs(&rays.org);
+    let margin = (splat(box_coord_max(b)) + max_abs(&rays.org)) * splat(PLANE_SLACK);
     for axis in 0..3 {
         let o = rays.org[axis];
         let (lo, hi) = (b.min[axis], b.max[axis]);
-        let margin = (splat(lo.abs().max(hi.abs())) + o_max) * splat(PLANE_SLACK);
         let d = rays.dir[axis];
         let parallel = d.cmp_eq(Vf::<W>::ZERO);
         let inside = o.cmp_ge(splat(lo) - margin) & o.cmp_le(splat(hi) + margin);
