@@ -15,7 +15,7 @@
 //!   becomes an interval in `t`; for a parallel one, a band around the plane. The
 //!   coordinates involved are the ray origin's largest coordinate ([`max_abs`], as the
 //!   triangle test's error bound has it) and the tree box's largest coordinate on any
-//!   axis ([`box_coord_max`]), which bounds every split position and every corner (a
+//!   axis (`box_coord_max`), which bounds every split position and every corner (a
 //!   sliver long along one axis rounds a grazing hit off along the others): the margin
 //!   is then one number per ray, computed once. A wider margin only visits more cells,
 //!   never fewer.
@@ -72,7 +72,7 @@ impl KdTree {
         clip_to_box(&self.bounds, ray, inv_dir)
     }
 
-    /// [`box_coord_max`] of the tree's box on every axis: no split lies farther from the
+    /// `box_coord_max` of the tree's box on every axis: no split lies farther from the
     /// origin, so it stands in for the split position in the plane margin.
     #[inline]
     pub(super) fn coord_max(&self) -> Vec3 {
@@ -425,7 +425,7 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     // The triangle test's rounding grows with the origin's largest coordinate on every
     // axis (a ray from far away along z can land a hit off in y by that much), so the box
-    // is widened by it and by the box's ([`box_coord_max`]), not by the coordinates of
+    // is widened by it and by the box's (`box_coord_max`), not by the coordinates of
     // its own axis alone.
     let margin = (box_coord_max(b) + max_abs(ray.org)) * PLANE_SLACK;
     for axis in 0..3 {
