@@ -5,23 +5,12 @@
 mod common;
 
 use common::cli::{check, raypack, s, scratch};
+use common::shipped_scenes;
 
 use std::path::PathBuf;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn shipped_scenes() -> Vec<PathBuf> {
-    let dir = repo().join("scenes");
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    scenes.sort();
-    assert!(!scenes.is_empty(), "no scene files in {}", dir.display());
-    scenes
 }
 
 #[test]

@@ -403,12 +403,11 @@ fn finish(args: &Args, report: &Report, film: &Film, options: &WriteOptions) -> 
     }
     if ImageFormat::from_path(&args.output) == Some(ImageFormat::Png)
         && args.exposure.is_none()
-        && let Some(ev) = film.exposure_hint()
+        && let Some((ev, bright)) = film.exposure_hint()
     {
         eprintln!(
-            "raypack: warning: {} is dark: its brightest pixels reach {:.3} of white; render it with --exposure {ev} to brighten it (or write .pfm or .exr to keep linear radiance)",
+            "raypack: warning: {} is dark: its brightest pixels reach {bright:.3} of white; render it with --exposure {ev} to brighten it (or write .pfm or .exr to keep linear radiance)",
             args.output.display(),
-            film.bright_end()
         );
     }
     film.write_with(&args.output, options)?;

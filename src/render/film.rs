@@ -147,11 +147,11 @@ impl Film {
     }
 
     /// The whole `--exposure` (EV) that brings a dark image's [`Film::bright_end`] to
-    /// between 0.5 and 1 of white, when it sits below a quarter of white; `None` for an
-    /// image bright enough, or black (nothing to expose).
-    pub fn exposure_hint(&self) -> Option<f32> {
+    /// between 0.5 and 1 of white, with that bright end, when it sits below a quarter of
+    /// white; `None` for an image bright enough, or black (nothing to expose).
+    pub fn exposure_hint(&self) -> Option<(f32, f32)> {
         let bright = self.bright_end();
-        (bright > 0.0 && bright < 0.25).then(|| (1.0 / bright).log2().floor())
+        (bright > 0.0 && bright < 0.25).then(|| ((1.0 / bright).log2().floor(), bright))
     }
 
     /// 8-bit sRGB, row-major from the top, 3 bytes per pixel, after scaling by
@@ -346,10 +346,10 @@ mod tests {
             "{}",
             film.bright_end()
         );
-        assert_eq!(film.exposure_hint(), Some(3.0));
+        assert_eq!(film.exposure_hint().map(|(ev, _)| ev), Some(3.0));
         // One hot pixel does not hide the darkness.
         film.pixels[0] = glam::Vec3::splat(50.0);
-        assert_eq!(film.exposure_hint(), Some(3.0));
+        assert_eq!(film.exposure_hint().map(|(ev, _)| ev), Some(3.0));
         for p in film.pixels.iter_mut() {
             *p *= 8.0;
         }

@@ -139,7 +139,7 @@ pub fn emitter_lights(scene: &super::Scene, samples: u32, max_lights: usize) -> 
     emitters.truncate(max_lights);
     let total: Vec3 = emitters.iter().map(|(power, _)| *power).sum();
     let scale = 1.0 / total.max_element();
-    let total_mean = total.element_sum();
+    let total_sum = total.element_sum();
     let lights = emitters
         .iter()
         .map(|&(power, [a, b, c])| Light::Triangle {
@@ -147,7 +147,7 @@ pub fn emitter_lights(scene: &super::Scene, samples: u32, max_lights: usize) -> 
             edge_u: b - a,
             edge_v: c - a,
             color: power * scale,
-            samples: ((samples as f32 * power.element_sum() / total_mean).round() as u32).max(1),
+            samples: ((samples as f32 * power.element_sum() / total_sum).round() as u32).max(1),
         })
         .collect();
     EmitterLights { lights, left_out }
