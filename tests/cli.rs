@@ -853,3 +853,34 @@ fn huge_triangles_are_not_called_zero_area() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `RAYPACK_ISA` picks the kernels: a lower set is taken and reported, an unknown name
+/// or a set the CPU lacks is an error before any work.
+#[test]
+fn raypack_isa_forces_the_kernels_or_is_refused() {
+    let scene = "scenes/part1.toml";
+    let out = raypack_env(&["info", scene], &[("RAYPACK_ISA", "sse")]);
+    check(&out, "info with RAYPACK_ISA=sse");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let kernels = stdout
+        .lines()
+        .find(|l| l.starts_with("kernels"))
+        .expect("info names the kernels");
+    assert!(kernels.contains("sse"), "{kernels}");
+
+    let out = raypack_env(&["info", scene], &[("RAYPACK_ISA", "avx9")]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("RAYPACK_ISA=\"avx9\"") && stderr.contains("sse, avx2 or avx512"),
+        "{stderr}"
+    );
+    assert!(out.stdout.is_empty(), "no work before the error");
+
+    if let Some(lacking) = raypack::simd::Isa::ALL.into_iter().find(|i| !i.supported()) {
+        let out = raypack_env(&["info", scene], &[("RAYPACK_ISA", lacking.name())]);
+        assert_eq!(out.status.code(), Some(2));
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("this CPU does not run"), "{stderr}");
+    }
+}

@@ -57,10 +57,20 @@ fn check_kdtree(input: KdInput) {
         .iter()
         .map(|&(o, d, t_min, t_max)| Ray::new(Vec3::from(o), Vec3::from(d), t_min, t_max))
         .collect();
-    for chunk in rays.chunks(16) {
+    let isas = common::isas();
+    for (isa, chunk) in isas
+        .iter()
+        .flat_map(|&i| rays.chunks(16).map(move |c| (i, c)))
+    {
         let packet = RayPacket::<W16>::from_rays(chunk);
-        let hits = tree.intersect_packet(&packet);
-        let occluded = tree.occluded_packet(&packet);
+        let (hits, occluded) = isa
+            .scope(|| {
+                (
+                    tree.intersect_packet(&packet),
+                    tree.occluded_packet(&packet),
+                )
+            })
+            .expect("a supported instruction set");
         for (i, ray) in chunk.iter().enumerate() {
             let want = brute.intersect(ray);
             assert_eq!(

@@ -29,8 +29,35 @@ fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize 
         .map(|(c, chunk)| {
             let mut hits = 0;
             let packet = RayPacket::<W8>::from_rays(chunk);
-            let packet_hits = tree.intersect_packet(&packet);
-            let packet_occluded = tree.occluded_packet(&packet);
+            for isa in common::isas() {
+                let (packet_hits, packet_occluded) = isa
+                    .scope(|| {
+                        (
+                            tree.intersect_packet(&packet),
+                            tree.occluded_packet(&packet),
+                        )
+                    })
+                    .expect("a supported instruction set");
+                for (i, ray) in chunk.iter().enumerate() {
+                    let lane = packet_hits.lane(i);
+                    let want = hit_bits(brute.intersect(ray));
+                    assert_eq!(
+                        hit_bits(lane.is_hit().then_some(lane)),
+                        want,
+                        "{what}: ray {} {ray:?} packet ({isa}) vs brute",
+                        c * 8 + i
+                    );
+                    assert_eq!(
+                        packet_occluded & (1 << i) != 0,
+                        brute.occluded(ray),
+                        "{what}: ray {ray:?} packet ({isa}) occluded"
+                    );
+                }
+            }
+            let (packet_hits, packet_occluded) = (
+                tree.intersect_packet(&packet),
+                tree.occluded_packet(&packet),
+            );
             for (i, ray) in chunk.iter().enumerate() {
                 let want = brute.intersect(ray);
                 let got = tree.intersect(ray);
@@ -94,10 +121,19 @@ fn nan_infinite_and_zero_rays_hit_nothing() {
     // scalar answers.
     let good = Ray::new(Vec3::new(0.5, 2.0, 0.5), -Vec3::Y, 0.0, inf);
     let want = tree.intersect(&good).expect("the good ray hits");
-    for ray in &bad {
+    for (isa, ray) in common::isas()
+        .into_iter()
+        .flat_map(|i| bad.iter().map(move |r| (i, r)))
+    {
         let packet = RayPacket::<W4>::from_rays(&[good, *ray, good, *ray]);
-        let hits = tree.intersect_packet(&packet);
-        let occluded = tree.occluded_packet(&packet);
+        let (hits, occluded) = isa
+            .scope(|| {
+                (
+                    tree.intersect_packet(&packet),
+                    tree.occluded_packet(&packet),
+                )
+            })
+            .expect("a supported instruction set");
         assert_eq!(occluded, 0b0101, "{ray:?}");
         for i in [0, 2] {
             assert_eq!(
@@ -153,16 +189,18 @@ fn tiny_huge_and_far_scenes_agree_with_brute_force_and_stay_watertight() {
             0,
             "{what}: scalar leaks"
         );
-        assert_eq!(
-            leaks_packet::<W4>(&closed_tree, &interior).len(),
-            0,
-            "{what}: packet leaks (4 lanes)"
-        );
-        assert_eq!(
-            leaks_packet::<W16>(&closed_tree, &interior).len(),
-            0,
-            "{what}: packet leaks (16 lanes)"
-        );
+        for isa in common::isas() {
+            assert_eq!(
+                leaks_packet::<W4>(isa, &closed_tree, &interior).len(),
+                0,
+                "{what}: packet leaks (4 lanes, {isa})"
+            );
+            assert_eq!(
+                leaks_packet::<W16>(isa, &closed_tree, &interior).len(),
+                0,
+                "{what}: packet leaks (16 lanes, {isa})"
+            );
+        }
     }
 }
 

@@ -26,7 +26,7 @@ use raypack::ray::{Hit, Ray};
 use raypack::rayset::standard::standard_sets;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, View};
-use raypack::simd::{W4, W8, W16};
+use raypack::simd::{Isa, W4, W8, W16};
 
 /// A hit that is no answer, written into the output first so a ray the stream kernel
 /// forgets shows up.
@@ -80,13 +80,18 @@ impl Accel for Lanes<'_> {
 /// once). Returns the number of closest hits.
 fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
     let want = scalar_answers(tree, rays);
-    for w in WIDTHS {
-        for g in GROUPS {
-            let how = format!("{what}, {w} lanes, {g} groups");
-            assert_stream_gives(&Lanes(tree, w, g), rays, &want, &how);
+    let mut closest = 0;
+    common::each_isa(|| {
+        let isa = Isa::in_use();
+        for w in WIDTHS {
+            for g in GROUPS {
+                let how = format!("{what}, {isa}, {w} lanes, {g} groups");
+                assert_stream_gives(&Lanes(tree, w, g), rays, &want, &how);
+            }
         }
-    }
-    assert_stream_gives(tree, rays, &want, what)
+        closest = assert_stream_gives(tree, rays, &want, &format!("{what}, {isa}"));
+    });
+    closest
 }
 
 /// The scalar answers of `rays`: closest hits as bits (a miss as [`Hit::MISS`]) and

@@ -8,7 +8,7 @@ mod common;
 
 use common::closed::{aimed_rays, closed_meshes, interior_rays, leaks_packet, leaks_scalar};
 use raypack::accel::kdtree::KdTree;
-use raypack::simd::{W4, W8, W16};
+use raypack::simd::{Isa, W4, W8, W16};
 
 #[test]
 fn closed_meshes_leak_no_ray() {
@@ -25,17 +25,27 @@ fn closed_meshes_leak_no_ray() {
             ("aimed", aimed_rays(mesh, aimed_count, 200 + m as u64)),
         ];
         for (set, rays) in &sets {
-            for path in ["scalar", "packet4", "packet8", "packet16"] {
+            let isas = common::isas();
+            let paths = std::iter::once(("scalar", Isa::Sse)).chain(
+                isas.iter()
+                    .flat_map(|&i| ["packet4", "packet8", "packet16"].map(|p| (p, i))),
+            );
+            for (path, isa) in paths {
                 let start = std::time::Instant::now();
                 let leaks = match path {
                     "scalar" => leaks_scalar(&tree, rays),
-                    "packet4" => leaks_packet::<W4>(&tree, rays),
-                    "packet8" => leaks_packet::<W8>(&tree, rays),
-                    _ => leaks_packet::<W16>(&tree, rays),
+                    "packet4" => leaks_packet::<W4>(isa, &tree, rays),
+                    "packet8" => leaks_packet::<W8>(isa, &tree, rays),
+                    _ => leaks_packet::<W16>(isa, &tree, rays),
+                };
+                let path = if path == "scalar" {
+                    path.to_string()
+                } else {
+                    format!("{path}/{isa}")
                 };
                 let elapsed = start.elapsed();
                 let line = format!(
-                    "{:<12} {:>7} tris  {set:<6} {path:<8} {:>4} leaks / {} rays ({elapsed:.2?})",
+                    "{:<12} {:>7} tris  {set:<6} {path:<15} {:>4} leaks / {} rays ({elapsed:.2?})",
                     mesh.name,
                     mesh.geometry.triangles.len(),
                     leaks.len(),
@@ -50,5 +60,6 @@ fn closed_meshes_leak_no_ray() {
         }
     }
     assert!(failures.is_empty(), "leaks:\n{}", failures.join("\n"));
-    assert_eq!(report.len(), 4 * 2 * 4, "meshes x ray sets x paths");
+    let paths = 1 + 3 * common::isas().len();
+    assert_eq!(report.len(), 4 * 2 * paths, "meshes x ray sets x paths");
 }

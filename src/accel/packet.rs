@@ -2,7 +2,10 @@
 //! per lane (Wald 2004, chapter 6), at any width `W` of [`crate::simd`].
 
 use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
-use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, max_abs};
+use crate::simd::{
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, inl, max_abs, recast,
+    recast_mask,
+};
 use glam::Vec3;
 
 /// `W::LANES` rays. Lanes whose bit in `active` is clear are ignored by every kernel:
@@ -34,7 +37,7 @@ const FILL: Ray = Ray {
 };
 
 /// The lowest `n` bits set.
-#[inline]
+#[inline(always)]
 pub fn low_bits(n: usize) -> LaneBits {
     if n == 0 {
         0
@@ -45,7 +48,7 @@ pub fn low_bits(n: usize) -> LaneBits {
 
 impl<W: Simd> RayPacket<W> {
     /// Packs up to `W::LANES` rays; lanes past `rays.len()` are inactive.
-    #[inline]
+    #[inline(always)]
     pub fn from_rays(rays: &[Ray]) -> RayPacket<W> {
         assert!(
             rays.len() <= W::LANES,
@@ -56,15 +59,43 @@ impl<W: Simd> RayPacket<W> {
             // A full packet: one transpose of the rays' records.
             return RayPacket::full(Vf::<W>::transpose8(Ray::as_records(rays)));
         }
-        let get = |i: usize| rays.get(i).unwrap_or(&FILL);
-        let org = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).org[a]));
-        let dir = [0, 1, 2].map(|a| Vf::<W>::from_fn(|i| get(i).dir[a]));
+        let get = inl(
+            #[inline(always)]
+            |i: usize| rays.get(i).unwrap_or(&FILL),
+        );
+        let org = [0, 1, 2].amap(
+            #[inline(always)]
+            |a| {
+                Vf::<W>::from_fn(
+                    #[inline(always)]
+                    |i| get(i).org[a],
+                )
+            },
+        );
+        let dir = [0, 1, 2].amap(
+            #[inline(always)]
+            |a| {
+                Vf::<W>::from_fn(
+                    #[inline(always)]
+                    |i| get(i).dir[a],
+                )
+            },
+        );
         RayPacket {
             org,
             dir,
-            inv_dir: dir.map(|x| Vf::<W>::ONE / x),
-            t_min: Vf::<W>::from_fn(|i| get(i).t_min),
-            t_max: Vf::<W>::from_fn(|i| get(i).t_max),
+            inv_dir: dir.amap(
+                #[inline(always)]
+                |x| Vf::<W>::ONE / x,
+            ),
+            t_min: Vf::<W>::from_fn(
+                #[inline(always)]
+                |i| get(i).t_min,
+            ),
+            t_max: Vf::<W>::from_fn(
+                #[inline(always)]
+                |i| get(i).t_max,
+            ),
             active: Mask::<W>::from_bits(low_bits(rays.len())),
         }
     }
@@ -72,6 +103,7 @@ impl<W: Simd> RayPacket<W> {
     /// [`RayPacket::from_rays`] of the rays of `lo` followed by those of `hi`, each
     /// run half the width (a 4x4 pixel block of an image set: two runs of 8 rays, see
     /// [`crate::rayset::trace`]).
+    #[inline(always)]
     pub fn from_halves(lo: &[Ray], hi: &[Ray]) -> RayPacket<W> {
         assert!(
             lo.len() == W::LANES / 2 && hi.len() == W::LANES / 2,
@@ -84,13 +116,16 @@ impl<W: Simd> RayPacket<W> {
     }
 
     /// A full packet from its rays' record fields, transposed into lanes.
-    #[inline]
+    #[inline(always)]
     fn full([ox, oy, oz, dx, dy, dz, t_min, t_max]: [Vf<W>; 8]) -> RayPacket<W> {
         let dir = [dx, dy, dz];
         RayPacket {
             org: [ox, oy, oz],
             dir,
-            inv_dir: dir.map(|x| Vf::<W>::ONE / x),
+            inv_dir: dir.amap(
+                #[inline(always)]
+                |x| Vf::<W>::ONE / x,
+            ),
             t_min,
             t_max,
             active: Mask::<W>::from_bits(W::all_bits()),
@@ -99,6 +134,7 @@ impl<W: Simd> RayPacket<W> {
 
     /// Packs the rays of the `Some` lanes (at most `W::LANES`); `None` lanes and lanes
     /// past the slice are inactive.
+    #[inline(always)]
     pub fn from_lanes(rays: &[Option<Ray>]) -> RayPacket<W> {
         assert!(
             rays.len() <= W::LANES,
@@ -121,26 +157,48 @@ impl<W: Simd> RayPacket<W> {
     /// Lanes that can hit anything; the twin of [`Ray::is_usable`] (finite origin and
     /// direction, the direction's largest component in [`DIR_MIN`, `DIR_MAX`],
     /// `t_min <= t_max`).
-    #[inline]
+    #[inline(always)]
     pub fn usable(&self) -> Mask<W> {
-        let finite = |v: &[Vf<W>; 3]| v[0].finite() & v[1].finite() & v[2].finite();
+        let finite = inl(
+            #[inline(always)]
+            |v: &[Vf<W>; 3]| v[0].finite() & v[1].finite() & v[2].finite(),
+        );
         let d_max = max_abs(&self.dir);
         let scaled = d_max.cmp_ge(Vf::<W>::splat(DIR_MIN)) & d_max.cmp_le(Vf::<W>::splat(DIR_MAX));
         finite(&self.org) & finite(&self.dir) & scaled & self.t_min.cmp_le(self.t_max)
     }
 
+    /// The same rays in backend `B` of the same width (the backend of the instruction
+    /// set in use, [`crate::simd::dispatch`]): no bit changes.
+    #[inline(always)]
+    pub(crate) fn recast<B: Simd>(&self) -> RayPacket<B> {
+        debug_assert_eq!(W::LANES, B::LANES);
+        RayPacket {
+            org: self.org.amap(recast),
+            dir: self.dir.amap(recast),
+            inv_dir: self.inv_dir.amap(recast),
+            t_min: recast(self.t_min),
+            t_max: recast(self.t_max),
+            active: recast_mask(self.active),
+        }
+    }
+
     /// Bit `i` set when lane `i` is active.
-    #[inline]
+    #[inline(always)]
     pub fn active_bits(&self) -> LaneBits {
         self.active.bits()
     }
 
     /// Lane `i` as a scalar ray, or `None` when it is inactive.
+    #[inline(always)]
     pub fn lane(&self, i: usize) -> Option<Ray> {
         if self.active_bits() & (1 << i) == 0 {
             return None;
         }
-        let c = |v: &[Vf<W>; 3]| Vec3::new(v[0].lane(i), v[1].lane(i), v[2].lane(i));
+        let c = inl(
+            #[inline(always)]
+            |v: &[Vf<W>; 3]| Vec3::new(v[0].lane(i), v[1].lane(i), v[2].lane(i)),
+        );
         Some(Ray::new(
             c(&self.org),
             c(&self.dir),
@@ -166,7 +224,7 @@ pub struct LaneHits<W: Simd> {
 
 impl<W: Simd> LaneHits<W> {
     /// No lane hit.
-    #[inline]
+    #[inline(always)]
     pub fn none() -> LaneHits<W> {
         LaneHits {
             mask: Mask::<W>::NONE,
@@ -192,7 +250,7 @@ pub struct HitPacket<W: Simd> {
 
 impl<W: Simd> HitPacket<W> {
     /// All lanes missed.
-    #[inline]
+    #[inline(always)]
     pub fn miss() -> HitPacket<W> {
         HitPacket {
             t: Vf::<W>::splat(f32::INFINITY),
@@ -205,7 +263,7 @@ impl<W: Simd> HitPacket<W> {
     /// Keeps, in each lane where `hits` hit, the closer of the lane's hit and primitive
     /// `prim`'s, in the order of [`Hit::is_closer`] (smaller `t`, ties to the smaller id).
     /// Returns the lanes that changed.
-    #[inline]
+    #[inline(always)]
     pub fn merge(&mut self, hits: &LaneHits<W>, prim: u32) -> Mask<W> {
         let prim_v = Vu::<W>::splat(prim);
         let smaller_id = self.prim.cmp_gt(prim_v);
@@ -218,30 +276,58 @@ impl<W: Simd> HitPacket<W> {
         take
     }
 
+    /// The same hits in backend `B` of the same width: no bit changes.
+    #[inline(always)]
+    pub(crate) fn recast<B: Simd>(&self) -> HitPacket<B> {
+        debug_assert_eq!(W::LANES, B::LANES);
+        HitPacket {
+            t: recast(self.t),
+            u: recast(self.u),
+            v: recast(self.v),
+            prim: Vu::<B>::from_fn(
+                #[inline(always)]
+                |i| self.prim.lane(i),
+            ),
+        }
+    }
+
     /// Builds a packet lane by lane (`f` is called once per lane, in lane order).
+    #[inline(always)]
     pub fn from_lanes(mut f: impl FnMut(usize) -> Hit) -> HitPacket<W> {
         let mut hits = [Hit::MISS; MAX_LANES];
         for (i, h) in hits.iter_mut().enumerate().take(W::LANES) {
             *h = f(i);
         }
         HitPacket {
-            t: Vf::<W>::from_fn(|i| hits[i].t),
-            u: Vf::<W>::from_fn(|i| hits[i].u),
-            v: Vf::<W>::from_fn(|i| hits[i].v),
-            prim: Vu::<W>::from_fn(|i| hits[i].prim),
+            t: Vf::<W>::from_fn(
+                #[inline(always)]
+                |i| hits[i].t,
+            ),
+            u: Vf::<W>::from_fn(
+                #[inline(always)]
+                |i| hits[i].u,
+            ),
+            v: Vf::<W>::from_fn(
+                #[inline(always)]
+                |i| hits[i].v,
+            ),
+            prim: Vu::<W>::from_fn(
+                #[inline(always)]
+                |i| hits[i].prim,
+            ),
         }
     }
 
     /// Lanes `0..out.len()` (at most `W::LANES`) into `out`, lane `i` to `out[i]`: one
     /// transpose ([`Float::transpose4_into`]).
-    #[inline]
+    #[inline(always)]
     pub fn write(&self, out: &mut [Hit]) {
         let prim = Vf::<W>::from_bits(self.prim);
         Vf::<W>::transpose4_into([self.t, self.u, self.v, prim], Hit::as_records_mut(out));
     }
 
     /// Lane `i` as a scalar hit.
-    #[inline]
+    #[inline(always)]
     pub fn lane(&self, i: usize) -> Hit {
         Hit {
             t: self.t.lane(i),

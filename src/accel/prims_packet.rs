@@ -8,22 +8,22 @@
 use super::Prims;
 use super::packet::{HitPacket, LaneHits, RayPacket};
 use crate::geom::{Aabb, Plane, Sphere};
-use crate::simd::{Float, LaneMask, Mask, Simd, Vf};
+use crate::simd::{AMap, Float, LaneMask, Mask, Simd, Vf};
 
 /// `a . b` in glam's order: `(x + y) + z`.
-#[inline]
+#[inline(always)]
 fn dot<F: Float>(a: [F; 3], b: [F; 3]) -> F {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-#[inline]
+#[inline(always)]
 fn in_range<W: Simd>(t: Vf<W>, rays: &RayPacket<W>, t_max: Vf<W>) -> Mask<W> {
     t.cmp_gt(rays.t_min) & t.cmp_lt(t_max)
 }
 
 /// Nearest `t` in `(t_min, t_max)` per lane where the ray meets the sphere's surface;
 /// twin of [`super::prims::intersect_sphere`].
-#[inline]
+#[inline(always)]
 pub fn intersect_sphere_packet<W: Simd>(
     s: &Sphere,
     rays: &RayPacket<W>,
@@ -32,13 +32,19 @@ pub fn intersect_sphere_packet<W: Simd>(
 ) -> LaneHits<W> {
     let splat = Vf::<W>::splat;
     let select = Vf::<W>::select;
-    let oc = [0, 1, 2].map(|a| rays.org[a] - splat(s.center[a]));
+    let oc = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| rays.org[a] - splat(s.center[a]),
+    );
     let a = dot(rays.dir, rays.dir);
     let b = dot(oc, rays.dir);
     let r2 = splat(s.radius * s.radius);
     let c = dot(oc, oc) - r2;
     let s_line = b / a;
-    let l = [0, 1, 2].map(|k| oc[k] - rays.dir[k] * s_line);
+    let l = [0, 1, 2].amap(
+        #[inline(always)]
+        |k| oc[k] - rays.dir[k] * s_line,
+    );
     let disc = a * (r2 - dot(l, l));
     let mask = active & disc.cmp_ge(Vf::<W>::ZERO);
     if mask.none() {
@@ -59,7 +65,7 @@ pub fn intersect_sphere_packet<W: Simd>(
 
 /// In the lanes of `mask`, `t0` if it lies in `(t_min, t_max)`, else `t1` if it does:
 /// the scalar tests' "nearer root first".
-#[inline]
+#[inline(always)]
 fn nearer_in_range<W: Simd>(
     mask: Mask<W>,
     t0: Vf<W>,
@@ -80,7 +86,7 @@ fn nearer_in_range<W: Simd>(
 /// Nearest `t` in `(t_min, t_max)` per lane where the ray meets the box's surface (slab
 /// test); twin of [`super::prims::intersect_box`]. `rays.inv_dir` is `1 / dir` by true
 /// division, as the scalar `recip`.
-#[inline]
+#[inline(always)]
 pub fn intersect_box_packet<W: Simd>(
     b: &Aabb,
     rays: &RayPacket<W>,
@@ -88,10 +94,22 @@ pub fn intersect_box_packet<W: Simd>(
     t_max: Vf<W>,
 ) -> LaneHits<W> {
     let splat = Vf::<W>::splat;
-    let t0 = [0, 1, 2].map(|a| (splat(b.min[a]) - rays.org[a]) * rays.inv_dir[a]);
-    let t1 = [0, 1, 2].map(|a| (splat(b.max[a]) - rays.org[a]) * rays.inv_dir[a]);
-    let lo = [0, 1, 2].map(|a| t0[a].min_lt(t1[a]));
-    let hi = [0, 1, 2].map(|a| t0[a].max_gt(t1[a]));
+    let t0 = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| (splat(b.min[a]) - rays.org[a]) * rays.inv_dir[a],
+    );
+    let t1 = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| (splat(b.max[a]) - rays.org[a]) * rays.inv_dir[a],
+    );
+    let lo = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| t0[a].min_lt(t1[a]),
+    );
+    let hi = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| t0[a].max_gt(t1[a]),
+    );
     let t_near = lo[0].max_gt(lo[1].max_gt(lo[2]));
     let t_far = hi[0].min_lt(hi[1].min_lt(hi[2]));
     let mask = active & t_near.cmp_le(t_far);
@@ -100,14 +118,17 @@ pub fn intersect_box_packet<W: Simd>(
 
 /// `t` in `(t_min, t_max)` per lane where the ray meets the plane; twin of
 /// [`super::prims::intersect_plane`].
-#[inline]
+#[inline(always)]
 pub fn intersect_plane_packet<W: Simd>(
     p: &Plane,
     rays: &RayPacket<W>,
     active: Mask<W>,
     t_max: Vf<W>,
 ) -> LaneHits<W> {
-    let n = [0, 1, 2].map(|a| Vf::<W>::splat(p.normal[a]));
+    let n = [0, 1, 2].amap(
+        #[inline(always)]
+        |a| Vf::<W>::splat(p.normal[a]),
+    );
     let t = (Vf::<W>::splat(p.offset) - dot(n, rays.org)) / dot(n, rays.dir);
     LaneHits {
         mask: active & in_range(t, rays, t_max),
@@ -142,7 +163,7 @@ impl Prims {
 
     /// Folds the planes into the `active` lanes of `best`; twin of
     /// [`Prims::intersect_planes`].
-    #[inline]
+    #[inline(always)]
     pub fn intersect_planes_packet<W: Simd>(
         &self,
         rays: &RayPacket<W>,
@@ -160,7 +181,7 @@ impl Prims {
     }
 
     /// Lanes of `active` that a plane occludes; twin of [`Prims::planes_occlude`].
-    #[inline]
+    #[inline(always)]
     pub fn planes_occlude_packet<W: Simd>(&self, rays: &RayPacket<W>, active: Mask<W>) -> Mask<W> {
         let active = active & rays.usable();
         let mut hit = Mask::<W>::NONE;

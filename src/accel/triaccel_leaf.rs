@@ -12,7 +12,7 @@ use super::Prims;
 use super::triaccel::{exact_rule, max_abs};
 use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneMask, Simd, Uint, Vf, Vu};
+use crate::simd::{Float, LaneMask, Simd, Uint, Vf, Vu, inl};
 
 impl Prims {
     /// Folds the triangles in slots `tris` (below `sphere_base`, at most `W::LANES`) into `best`
@@ -22,25 +22,40 @@ impl Prims {
     pub fn intersect_tris_lanes<W: Simd>(&self, tris: &[u32], ray: &Ray, best: &mut Hit) {
         debug_assert!(tris.len() <= W::LANES);
         let n = tris.len();
-        let rec = |i: usize| &self.tris[tris[i.min(n - 1)] as usize];
+        let rec = inl(
+            #[inline(always)]
+            |i: usize| &self.tris[tris[i.min(n - 1)] as usize],
+        );
         // The records' rows, transposed: field per vector, triangle per lane.
-        let [n_u, n_v, n_d, k_id] = Vf::<W>::from_rows4(|i| &rec(i).rows()[0]);
-        let [b_nu, b_nv, b_d, err] = Vf::<W>::from_rows4(|i| &rec(i).rows()[1]);
-        let [c_nu, c_nv, c_d, mag] = Vf::<W>::from_rows4(|i| &rec(i).rows()[2]);
+        let [n_u, n_v, n_d, k_id] = Vf::<W>::from_rows4(
+            #[inline(always)]
+            |i| &rec(i).rows()[0],
+        );
+        let [b_nu, b_nv, b_d, err] = Vf::<W>::from_rows4(
+            #[inline(always)]
+            |i| &rec(i).rows()[1],
+        );
+        let [c_nu, c_nv, c_d, mag] = Vf::<W>::from_rows4(
+            #[inline(always)]
+            |i| &rec(i).rows()[2],
+        );
         let k = k_id.to_bits() & Vu::<W>::splat(3);
         let (k_gt0, k_gt1) = (k.cmp_gt(Vu::<W>::splat(0)), k.cmp_gt(Vu::<W>::splat(1)));
         let (m0, m1) = (!k_gt0, k_gt0 & !k_gt1);
         let splat = Vf::<W>::splat;
         // Axis k, k + 1, k + 2 (mod 3) of a vector, per lane.
-        let pick = |x: f32, y: f32, z: f32| {
-            let (x, y, z) = (splat(x), splat(y), splat(z));
-            let sel = Vf::<W>::select;
-            [
-                sel(m0, x, sel(m1, y, z)),
-                sel(m0, y, sel(m1, z, x)),
-                sel(m0, z, sel(m1, x, y)),
-            ]
-        };
+        let pick = inl(
+            #[inline(always)]
+            |x: f32, y: f32, z: f32| {
+                let (x, y, z) = (splat(x), splat(y), splat(z));
+                let sel = Vf::<W>::select;
+                [
+                    sel(m0, x, sel(m1, y, z)),
+                    sel(m0, y, sel(m1, z, x)),
+                    sel(m0, z, sel(m1, x, y)),
+                ]
+            },
+        );
         let (o, d) = (ray.org, ray.dir);
         let lanes = Projected::<W> {
             o: pick(o.x, o.y, o.z),
@@ -72,7 +87,10 @@ impl Prims {
             let (ei, bi) = (edge.lane(i), bound.lane(i));
             let slot = tris[i] as usize;
             let hit = if ei >= bi {
-                (ti > ray.t_min && ti < limit).then(|| (ti, u.lane(i), v.lane(i)))
+                (ti > ray.t_min && ti < limit).then(
+                    #[inline(always)]
+                    || (ti, u.lane(i), v.lane(i)),
+                )
             } else {
                 exact_rule(ray, limit, &self.corners[slot])
             };
@@ -173,6 +191,7 @@ mod tests {
 
     /// Every group size from 1 to `W::LANES`, random groups (leaf order is any order),
     /// against the scalar loop from a miss and from a hit found earlier.
+    #[inline(always)]
     fn lanes_match_scalar<W: Simd>() {
         let g = geometry();
         let p = Prims::new(&g);

@@ -16,7 +16,7 @@ use super::axis::MOD3;
 use super::packet::{LaneHits, RayPacket};
 use super::triaccel::{C1, C2, T_SLACK, TriAccel, exact_rule};
 use super::watertight;
-use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
+use crate::simd::{AMap, Float, LaneMask, Mask, Simd, Vf, max_abs};
 use glam::Vec3;
 
 /// The projected test's arithmetic in lanes, shared by the packet test (lanes are rays,
@@ -94,7 +94,7 @@ impl TriAccel {
             d_max: max_abs(d),
         };
         let (t, ad, reach, slack) =
-            ray.distance([self.n_u, self.n_v, self.n_d].map(splat), splat(self.mag));
+            ray.distance([self.n_u, self.n_v, self.n_d].amap(splat), splat(self.mag));
         let mask =
             active & ((t - t_max) * ad).cmp_lt(slack) & ((rays.t_min - t) * ad).cmp_lt(slack);
         if mask.none() {
@@ -104,8 +104,8 @@ impl TriAccel {
             t,
             ad,
             reach,
-            [self.b_nu, self.b_nv, self.b_d].map(splat),
-            [self.c_nu, self.c_nv, self.c_d].map(splat),
+            [self.b_nu, self.b_nv, self.b_d].amap(splat),
+            [self.c_nu, self.c_nv, self.c_d].amap(splat),
             splat(self.err),
         );
         let inside = edge.cmp_ge(bound);
@@ -137,8 +137,23 @@ impl TriAccel {
 /// `fast` (the lanes the fast test decided) with the lanes of `unsure`, those within
 /// the edge bound, decided by the exact rule. Out of line: most tests have no such
 /// lane, and the traversal loops that inline the test stay small.
-#[inline(never)]
+#[inline(always)]
 fn near_edges<W: Simd>(
+    rays: &RayPacket<W>,
+    t_max: Vf<W>,
+    corners: &[Vec3; 3],
+    fast: LaneHits<W>,
+    unsure: Mask<W>,
+) -> LaneHits<W> {
+    W::enter(
+        #[inline(always)]
+        || near_edges_in(rays, t_max, corners, fast, unsure),
+    )
+}
+
+/// [`near_edges`]' body, compiled for `W`'s instruction set ([`Simd::enter`]).
+#[inline(always)]
+fn near_edges_in<W: Simd>(
     rays: &RayPacket<W>,
     t_max: Vf<W>,
     corners: &[Vec3; 3],
@@ -151,7 +166,10 @@ fn near_edges<W: Simd>(
     let exact = watertight::intersect_lanes(
         &rays.org,
         &rays.dir,
-        &corners.map(|c| [splat(c.x), splat(c.y), splat(c.z)]),
+        &corners.amap(
+            #[inline(always)]
+            |c| [splat(c.x), splat(c.y), splat(c.z)],
+        ),
     );
     let in_range = exact.t.cmp_gt(rays.t_min) & exact.t.cmp_lt(t_max);
     let mut hit = (fast.mask | (unsure & exact.hit & in_range)).bits();

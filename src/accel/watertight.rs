@@ -28,7 +28,7 @@
 
 use super::axis::MOD3;
 use crate::ray::Ray;
-use crate::simd::Float;
+use crate::simd::{AMap, Float, inl};
 use glam::Vec3;
 
 /// Where the line of `ray` passes through the closed triangle `corners` under the
@@ -42,6 +42,7 @@ use glam::Vec3;
 /// edge function or a term of that interpolation leaves f32's normal range, all of it
 /// is computed in f64: an underflow would round a tiny `t` to zero and put the hit
 /// outside those cells.
+#[inline(always)]
 pub fn intersect(ray: &Ray, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
     let (org, dir) = (ray.org, ray.dir);
     let ad = dir.abs();
@@ -56,16 +57,25 @@ pub fn intersect(ray: &Ray, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
     let sx = dir[kx] / dir[kz];
     let sy = dir[ky] / dir[kz];
     let sz = 1.0 / dir[kz];
-    let project = |p: Vec3| {
-        let q = p - org;
-        [q[kx] - sx * q[kz], q[ky] - sy * q[kz], sz * q[kz]]
-    };
+    let project = inl(
+        #[inline(always)]
+        |p: Vec3| {
+            let q = p - org;
+            [q[kx] - sx * q[kz], q[ky] - sy * q[kz], sz * q[kz]]
+        },
+    );
     let [a, b, c] = corners.map(project);
-    let edge = |p: [f32; 3], q: [f32; 3]| p[0] * q[1] - p[1] * q[0];
+    let edge = inl(
+        #[inline(always)]
+        |p: [f32; 3], q: [f32; 3]| p[0] * q[1] - p[1] * q[0],
+    );
     let (eu, ev, ew) = (edge(b, c), edge(c, a), edge(a, b));
     let (tu, tv, tw) = (eu * a[2], ev * b[2], ew * c[2]);
     if [eu, ev, ew, tu, tv, tw].into_iter().all(f32::is_normal) {
-        let signs = [eu, ev, ew].map(|e| sign(e as f64));
+        let signs = [eu, ev, ew].map(
+            #[inline(always)]
+            |e| sign(e as f64),
+        );
         if signs.contains(&-1) == signs.contains(&1) {
             return None;
         }
@@ -76,8 +86,14 @@ pub fn intersect(ray: &Ray, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
     // An edge function or a term of `t` that is zero, subnormal or infinite in f32:
     // the products of f32 values are exact in f64, and neither underflows nor
     // overflows there.
-    let f = |x: f32| x as f64;
-    let edge64 = |p: [f32; 3], q: [f32; 3]| f(p[0]) * f(q[1]) - f(p[1]) * f(q[0]);
+    let f = inl(
+        #[inline(always)]
+        |x: f32| x as f64,
+    );
+    let edge64 = inl(
+        #[inline(always)]
+        |p: [f32; 3], q: [f32; 3]| f(p[0]) * f(q[1]) - f(p[1]) * f(q[0]),
+    );
     let e = [edge64(b, c), edge64(c, a), edge64(a, b)];
     let signs = e.map(sign);
     if signs.contains(&-1) == signs.contains(&1) {
@@ -117,29 +133,50 @@ pub fn intersect_lanes<F: Float>(
     dir: &[F; 3],
     corners: &[[F; 3]; 3],
 ) -> LaneAnswer<F> {
-    let ad = dir.map(F::abs);
+    let ad = (*dir).amap(F::abs);
     // The scalar choice of `kz`, `kx = kz + 1`, `ky = kz + 2` (mod 3) per lane.
     let x_wins = ad[0].cmp_ge(ad[1]) & ad[0].cmp_ge(ad[2]);
     let y_wins = !x_wins & ad[1].cmp_ge(ad[2]);
     let sel = F::select;
-    let kz = |v: &[F; 3]| sel(x_wins, v[0], sel(y_wins, v[1], v[2]));
-    let kx = |v: &[F; 3]| sel(x_wins, v[1], sel(y_wins, v[2], v[0]));
-    let ky = |v: &[F; 3]| sel(x_wins, v[2], sel(y_wins, v[0], v[1]));
+    let kz = inl(
+        #[inline(always)]
+        |v: &[F; 3]| sel(x_wins, v[0], sel(y_wins, v[1], v[2])),
+    );
+    let kx = inl(
+        #[inline(always)]
+        |v: &[F; 3]| sel(x_wins, v[1], sel(y_wins, v[2], v[0])),
+    );
+    let ky = inl(
+        #[inline(always)]
+        |v: &[F; 3]| sel(x_wins, v[2], sel(y_wins, v[0], v[1])),
+    );
     let dz = kz(dir);
     let sx = kx(dir) / dz;
     let sy = ky(dir) / dz;
     let sz = F::ONE / dz;
-    let project = |p: &[F; 3]| {
-        let q = [p[0] - org[0], p[1] - org[1], p[2] - org[2]];
-        let qz = kz(&q);
-        [kx(&q) - sx * qz, ky(&q) - sy * qz, sz * qz]
-    };
-    let [a, b, c] = corners.map(|p| project(&p));
-    let edge = |p: &[F; 3], q: &[F; 3]| p[0] * q[1] - p[1] * q[0];
+    let project = inl(
+        #[inline(always)]
+        |p: &[F; 3]| {
+            let q = [p[0] - org[0], p[1] - org[1], p[2] - org[2]];
+            let qz = kz(&q);
+            [kx(&q) - sx * qz, ky(&q) - sy * qz, sz * qz]
+        },
+    );
+    let [a, b, c] = (*corners).amap(
+        #[inline(always)]
+        |p| project(&p),
+    );
+    let edge = inl(
+        #[inline(always)]
+        |p: &[F; 3], q: &[F; 3]| p[0] * q[1] - p[1] * q[0],
+    );
     let (eu, ev, ew) = (edge(&b, &c), edge(&c, &a), edge(&a, &b));
     let (tu, tv, tw) = (eu * a[2], ev * b[2], ew * c[2]);
     // `f32::is_normal`: NaN fails the comparison.
-    let normal = |x: F| x.abs().cmp_ge(F::splat(f32::MIN_POSITIVE)) & x.finite();
+    let normal = inl(
+        #[inline(always)]
+        |x: F| x.abs().cmp_ge(F::splat(f32::MIN_POSITIVE)) & x.finite(),
+    );
     let decided = normal(eu) & normal(ev) & normal(ew) & normal(tu) & normal(tv) & normal(tw);
     let z = F::ZERO;
     let same_sign =
@@ -156,7 +193,7 @@ pub fn intersect_lanes<F: Float>(
 }
 
 /// `-1`, `0` or `1` by the sign of `x`; NaN gives 0.
-#[inline]
+#[inline(always)]
 fn sign(x: f64) -> i8 {
     (x > 0.0) as i8 - (x < 0.0) as i8
 }
@@ -272,6 +309,7 @@ mod tests {
         out
     }
 
+    #[inline(always)]
     fn lanes_match_scalar<W: Simd>() {
         let cases = cases();
         let (mut hits, mut misses, mut undecided) = (0, 0, 0);

@@ -222,7 +222,7 @@ fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
     }
 }
 
-/// CPU model, logical cores and the SIMD level this binary was built for.
+/// CPU model, logical cores and the instruction set of the kernels in use.
 pub fn machine() -> Machine {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
@@ -234,27 +234,7 @@ pub fn machine() -> Machine {
         })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let mut simd = Vec::new();
-    if cfg!(target_feature = "avx512f") {
-        simd.push("AVX-512F");
-    }
-    if cfg!(target_feature = "avx2") {
-        simd.push("AVX2");
-    } else if cfg!(target_feature = "sse4.1") {
-        simd.push("SSE4.1");
-    } else if cfg!(target_feature = "sse2") {
-        simd.push("SSE2");
-    } else if cfg!(target_feature = "neon") {
-        simd.push("NEON");
-    }
-    if cfg!(target_feature = "fma") {
-        simd.push("FMA");
-    }
-    let simd = if simd.is_empty() {
-        "scalar".to_string()
-    } else {
-        simd.join("+")
-    };
+    let simd = super::isa_label();
     Machine { cpu, cores, simd }
 }
 
@@ -443,7 +423,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .chain(second.as_ref().map(|(tree, _)| tree))
         .collect();
     outln!(
-        "machine: {}, {} cores, {}",
+        "machine: {}, {} cores, kernels {}",
         machine.cpu,
         machine.cores,
         machine.simd

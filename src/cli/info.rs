@@ -77,6 +77,8 @@ struct Primary {
 struct Report {
     scene: String,
     builder: String,
+    /// The kernels' instruction set (`RAYPACK_ISA` or the widest the CPU runs).
+    isa: String,
     threads: usize,
     build_seconds: Seconds,
     /// Largest growth of the peak resident set over one build (bytes), tree included;
@@ -161,6 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // its (zero) triangles.
     let per_prim = |bytes: usize| bytes as f64 / bounded.max(1) as f64;
     outln!("scene            {}", args.scene);
+    outln!("kernels          {}", super::isa_label());
     outln!("primitives       {}", super::primitive_counts(geometry));
     let bounds = geometry.bounds();
     if bounds.is_empty() {
@@ -269,6 +272,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let report = Report {
             scene: args.scene.clone(),
             builder: params.builder.to_string(),
+            isa: super::isa_label(),
             threads,
             build_seconds: Seconds {
                 median: seconds[seconds.len() / 2],

@@ -70,6 +70,8 @@ pub enum Command {
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    // A bad `RAYPACK_ISA` is an error before any work, not a silent fallback.
+    raypack::simd::Isa::from_env().map_err(|e| BadInput(e.to_string()))?;
     match cli.command {
         Command::Render(a) => render::run(a),
         Command::Bench(a) => bench::run(a),
@@ -332,4 +334,16 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         .chain()
         .any(|c| c.is::<BadInput>() || raypack::is_input_error(c));
     if bad_input { 2 } else { 1 }
+}
+
+/// The kernels' instruction set for reports: the one in use, and the widest this CPU
+/// runs when `RAYPACK_ISA` forced a lower one (`avx2 (cpu: avx512)`).
+pub fn isa_label() -> String {
+    use raypack::simd::Isa;
+    let (used, best) = (Isa::in_use(), Isa::best());
+    if used == best {
+        used.name().to_string()
+    } else {
+        format!("{used} (cpu: {best})")
+    }
 }

@@ -255,6 +255,8 @@ struct Report<'a> {
     height: u32,
     threads: usize,
     mode: &'a str,
+    /// The kernels' instruction set (`RAYPACK_ISA` or the widest the CPU runs).
+    isa: String,
     primitives: u32,
     build_seconds: f64,
     render_seconds: f64,
@@ -283,6 +285,7 @@ impl<'a> Report<'a> {
             height: scene.settings.height,
             threads,
             mode: args.mode.name(),
+            isa: super::isa_label(),
             primitives: scene.geometry.prim_count(),
             build_seconds,
             render_seconds,

@@ -9,6 +9,7 @@ use raypack::accel::{PacketTrace, PacketWidth};
 use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
+use raypack::simd::Isa;
 
 /// A closed mesh and a sampler of points strictly inside it.
 pub struct ClosedMesh {
@@ -130,13 +131,16 @@ pub fn leaks_scalar(accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
         .collect()
 }
 
-/// Indices of the rays that miss, traced `W::LANES` at a time as packets (consecutive
-/// rays share a packet; they are incoherent, so this also exercises packet splitting).
-pub fn leaks_packet<W: PacketWidth>(accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
+/// Indices of the rays that miss, traced `W::LANES` at a time as packets with the
+/// kernels of `isa` (consecutive rays share a packet; they are incoherent, so this also
+/// exercises packet splitting).
+pub fn leaks_packet<W: PacketWidth>(isa: Isa, accel: &dyn Accel, rays: &[Ray]) -> Vec<usize> {
     rays.par_chunks(W::LANES)
         .enumerate()
         .flat_map_iter(|(c, chunk)| {
-            let hits = accel.intersect_packet(&RayPacket::<W>::from_rays(chunk));
+            let hits = isa
+                .scope(|| accel.intersect_packet(&RayPacket::<W>::from_rays(chunk)))
+                .expect("a supported instruction set");
             (0..chunk.len())
                 .filter(move |&i| !hits.lane(i).is_hit())
                 .map(move |i| c * W::LANES + i)

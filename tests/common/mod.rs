@@ -18,6 +18,7 @@ use raypack::ray::{Hit, Ray};
 use raypack::scene::catalog;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
+use raypack::simd::Isa;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -150,17 +151,56 @@ macro_rules! require_scenes {
 }
 
 /// Runs a test body generic over the packet width at every width (4, 8 and 16 lanes),
-/// each on its own thread, so the three share both cores. Each width stays on one thread:
-/// the traversal counters the bodies read are per thread.
+/// each on its own thread, so the three share both cores, and on each thread once per
+/// instruction set the CPU runs ([`isas`]). Each width stays on one thread: the
+/// traversal counters the bodies read are per thread, and so is [`Isa::scope`].
 #[macro_export]
 macro_rules! at_every_width {
     ($f:ident $(, $arg:expr)*) => {
         std::thread::scope(|s| {
-            s.spawn(|| $f::<raypack::simd::W4>($($arg),*));
-            s.spawn(|| $f::<raypack::simd::W8>($($arg),*));
-            $f::<raypack::simd::W16>($($arg),*);
+            s.spawn(|| $crate::common::each_isa(|| $f::<raypack::simd::W4>($($arg),*)));
+            s.spawn(|| $crate::common::each_isa(|| $f::<raypack::simd::W8>($($arg),*)));
+            $crate::common::each_isa(|| $f::<raypack::simd::W16>($($arg),*));
         })
     };
+}
+
+/// The instruction sets whose kernels the tests run: every one the CPU runs. Those it
+/// lacks are named once per binary at exit, so a run on an AVX2-only machine says
+/// that its AVX-512 kernels went untested.
+pub fn isas() -> Vec<Isa> {
+    static REPORT: Once = Once::new();
+    let (run, lacking): (Vec<Isa>, Vec<Isa>) = Isa::ALL.into_iter().partition(|i| i.supported());
+    if !lacking.is_empty() {
+        REPORT.call_once(|| {
+            unsafe extern "C" {
+                fn atexit(f: extern "C" fn()) -> std::ffi::c_int;
+            }
+            // SAFETY: as in `not_found`.
+            unsafe { atexit(report_isas) };
+        });
+    }
+    run
+}
+
+/// `f` once under each of [`isas`], on the calling thread.
+pub fn each_isa(mut f: impl FnMut()) {
+    for isa in isas() {
+        isa.scope(&mut f).expect("a supported instruction set");
+    }
+}
+
+extern "C" fn report_isas() {
+    let lacking: Vec<&str> = Isa::ALL
+        .into_iter()
+        .filter(|i| !i.supported())
+        .map(Isa::name)
+        .collect();
+    let _ = writeln!(
+        std::io::stderr(),
+        "raypack: the {} kernels did not run in this binary: this CPU lacks them",
+        lacking.join(" and ")
+    );
 }
 
 /// The tutorial scene files of scenes/ (all seven or more), sorted. Panics, naming the

@@ -16,7 +16,7 @@
 //! the split word), so traversal reads a leaf's primitives without the table lookup.
 //! The nodes of a built [`super::KdTree`] are in that form.
 
-use crate::simd::{Mask, Simd, Uint, Vu};
+use crate::simd::{Mask, Simd, Uint, Vu, inl};
 
 /// Axis value that marks a leaf.
 const LEAF: u32 = 3;
@@ -133,6 +133,7 @@ impl KdNode {
 
 /// The nodes as 32-bit words, node `i`'s split at `2 i` and its bits at `2 i + 1`: the
 /// table the lane walks gather from (traverse_lanes.rs).
+#[inline(always)]
 pub fn as_words(nodes: &[KdNode]) -> &[u32] {
     // SAFETY: `KdNode` is `repr(C)` with two 4-byte fields and no padding (its size is
     // asserted above), so `n` nodes are `2 n` initialized, 4-byte aligned words, and
@@ -160,9 +161,15 @@ impl<W: Simd> NodeLanes<W> {
     pub fn decode(bits: Vu<W>) -> NodeLanes<W> {
         let splat = Vu::<W>::splat;
         let axis = bits & splat(3);
-        let above = |k: u32| axis.cmp_gt(splat(k));
+        let above = inl(
+            #[inline(always)]
+            |k: u32| axis.cmp_gt(splat(k)),
+        );
         let (a0, a1, a2) = (above(0), above(1), above(2));
-        let flag = |f: u32| (bits & splat(f << 2)).cmp_gt(splat(0));
+        let flag = inl(
+            #[inline(always)]
+            |f: u32| (bits & splat(f << 2)).cmp_gt(splat(0)),
+        );
         NodeLanes {
             leaf: a2,
             axis: [!a0, a0 & !a1],
@@ -176,8 +183,12 @@ impl<W: Simd> NodeLanes<W> {
 /// `leaves`, so traversal skips one dependent load per leaf (the table is 8 bytes per
 /// leaf, scattered like the nodes; half of Sponza's leaves are empty and now cost no
 /// load at all). Panics if the index list outgrows the 30 bits.
+#[inline(always)]
 pub fn with_leaf_ranges(mut nodes: Vec<KdNode>, leaves: &[[u32; 2]]) -> Vec<KdNode> {
-    for n in nodes.iter_mut().filter(|n| n.is_leaf()) {
+    for n in nodes.iter_mut().filter(
+        #[inline(always)]
+        |n| n.is_leaf(),
+    ) {
         let [first, count] = leaves[n.leaf_index() as usize];
         assert!(
             first <= MAX_INDEX,
@@ -189,13 +200,18 @@ pub fn with_leaf_ranges(mut nodes: Vec<KdNode>, leaves: &[[u32; 2]]) -> Vec<KdNo
 }
 
 /// The [`KdNode::empty_children`] bits of the child pair starting at `left`.
+#[inline(always)]
 pub fn empty_flags(nodes: &[KdNode], left: usize) -> u32 {
-    let empty = |k: usize| nodes[k].is_leaf() && nodes[k].leaf_count() == 0;
+    let empty = inl(
+        #[inline(always)]
+        |k: usize| nodes[k].is_leaf() && nodes[k].leaf_count() == 0,
+    );
     (empty(left) as u32 * LEFT_EMPTY) | (empty(left + 1) as u32 * RIGHT_EMPTY)
 }
 
 /// Sets every inner node's [`KdNode::empty_children`] bits from its children, which
 /// must be ranged leaves already ([`with_leaf_ranges`]) where they are leaves.
+#[inline(always)]
 pub fn mark_empty_children(nodes: &mut [KdNode]) {
     for i in 0..nodes.len() {
         let n = nodes[i];
@@ -222,11 +238,20 @@ pub struct AlignedNodes {
 }
 
 impl From<Vec<KdNode>> for AlignedNodes {
+    #[inline(always)]
     fn from(nodes: Vec<KdNode>) -> AlignedNodes {
         let pad = KdNode::leaf(0);
         let blocks = nodes
             .chunks(8)
-            .map(|c| NodeBlock(std::array::from_fn(|i| c.get(i).copied().unwrap_or(pad))))
+            .map(
+                #[inline(always)]
+                |c| {
+                    NodeBlock(std::array::from_fn(
+                        #[inline(always)]
+                        |i| c.get(i).copied().unwrap_or(pad),
+                    ))
+                },
+            )
             .collect();
         AlignedNodes {
             blocks,
@@ -238,6 +263,7 @@ impl From<Vec<KdNode>> for AlignedNodes {
 impl std::ops::Deref for AlignedNodes {
     type Target = [KdNode];
 
+    #[inline(always)]
     fn deref(&self) -> &[KdNode] {
         // SAFETY: `NodeBlock` is `repr(C)` holding exactly `[KdNode; 8]` (the const
         // assert above proves there is no padding), so `blocks` is `8 * blocks.len()`
@@ -248,6 +274,7 @@ impl std::ops::Deref for AlignedNodes {
 }
 
 impl std::fmt::Debug for AlignedNodes {
+    #[inline(always)]
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_list().entries(self.iter()).finish()
     }

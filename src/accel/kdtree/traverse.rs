@@ -19,12 +19,12 @@
 //!   sliver long along one axis rounds a grazing hit off along the others): the margin
 //!   is then one number per ray, computed once. A wider margin only visits more cells,
 //!   never fewer.
-//! - A node step computes the band's two ends in `t` as `split * inv + off` with one
-//!   [`mul_add`] each, the offsets `-(org * inv) -+ slack` computed once per ray and axis
-//!   (`RayAxes`): one fused operation between the node's load and its decision instead
-//!   of a subtraction, a multiplication and the slack. Its rounding error is no larger
-//!   than that of `(split - org) * inv - slack` (both stay within a third of the slack),
-//!   and every traversal (scalar, packet, tile, lanes) computes it the same way.
+//! - A node step computes the band's two ends in `t` as `split * inv + off`, the
+//!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`RayAxes`): a
+//!   multiplication and an addition between the node's load and its decision. Its two
+//!   roundings stay within a quarter of the slack, and every traversal (scalar, packet,
+//!   tile, lanes) computes it the same way on every CPU: never fused, since FMA rounds
+//!   once where the CPU has it and would make the answers depend on the machine.
 //! - A primitive found in a leaf may be hit outside the leaf's cell; the search stops only
 //!   when every node left on the stack starts beyond the best hit (for ordered intervals
 //!   this is Havran's "the hit lies before the current node's exit"), so a closer hit in
@@ -39,7 +39,7 @@ use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
-use crate::simd::{LaneBits, Simd, W4, W8, W16, mul_add};
+use crate::simd::{LaneBits, Simd, W4, W8, W16};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -162,8 +162,8 @@ impl KdTree {
                 }
             } else {
                 let inv = axes.inv[axis];
-                let lo = mul_add(n.split, inv, axes.lo_off[axis]);
-                let hi = mul_add(n.split, inv, axes.hi_off[axis]);
+                let lo = n.split * inv + axes.lo_off[axis];
+                let hi = n.split * inv + axes.hi_off[axis];
                 let negative = axes.negative[axis];
                 let near = children + negative;
                 let far = children + 1 - negative;
@@ -385,7 +385,7 @@ pub(super) struct RayAxes {
     /// sides: `(coord_max[axis] + max_abs(org)) * PLANE_SLACK`.
     margin: [f32; 4],
     /// The band's ends in `t` at a plane `split` are `split * inv + lo_off` and
-    /// `split * inv + hi_off` ([`mul_add`]): `-(org * inv) - slack` and `+ slack`, the
+    /// `split * inv + hi_off`: `-(org * inv) - slack` and `+ slack`, the
     /// slack being `margin / |d|`.
     pub(super) lo_off: [f32; 4],
     pub(super) hi_off: [f32; 4],

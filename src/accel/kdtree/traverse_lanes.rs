@@ -33,7 +33,8 @@ use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::RayPacket;
 use crate::ray::{Hit, Ray};
 use crate::simd::{
-    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, max_abs, prefetch,
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, array_fn, inl, max_abs,
+    prefetch,
 };
 
 /// The lanes' walk state as arrays, one entry per lane: what the SIMD step loads and
@@ -52,6 +53,7 @@ struct Lanes {
 }
 
 impl Lanes {
+    #[inline(always)]
     fn new() -> Lanes {
         Lanes {
             node: [0; MAX_LANES],
@@ -65,7 +67,7 @@ impl Lanes {
     }
 
     /// Lane `i` from `walk` (after [`KdTree::start_walk`] or [`Walk::pop`]).
-    #[inline]
+    #[inline(always)]
     fn load_walk(&mut self, i: usize, walk: &Walk, best: &Hit) {
         self.node[i] = walk.node;
         self.t_near[i] = walk.t_near;
@@ -76,7 +78,10 @@ impl Lanes {
 
 #[inline(always)]
 fn vf<W: Simd>(a: &[f32; MAX_LANES]) -> Vf<W> {
-    Vf::<W>::from_fn(|i| a[i])
+    Vf::<W>::from_fn(
+        #[inline(always)]
+        |i| a[i],
+    )
 }
 
 #[inline(always)]
@@ -87,15 +92,21 @@ fn store_f<W: Simd>(v: Vf<W>, a: &mut [f32; MAX_LANES]) {
 }
 
 /// Set bits of `bits`, lowest first.
-#[inline]
+#[inline(always)]
 fn lanes_of(mut bits: LaneBits) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (bits != 0).then(|| {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            i
-        })
-    })
+    std::iter::from_fn(
+        #[inline(always)]
+        move || {
+            (bits != 0).then(
+                #[inline(always)]
+                || {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    i
+                },
+            )
+        },
+    )
 }
 
 /// How a ray of the stream starts ([`Starts`]).
@@ -134,6 +145,7 @@ struct Starts {
 
 impl Starts {
     /// No block yet.
+    #[inline(always)]
     fn new() -> Starts {
         Starts {
             base: 0,
@@ -146,7 +158,10 @@ impl Starts {
             hi_off: [[0.0; MAX_LANES]; 3],
             node: 0,
             steps: 0,
-            stacks: std::array::from_fn(|_| Stack::new()),
+            stacks: array_fn(
+                #[inline(always)]
+                |_| Stack::new(),
+            ),
         }
     }
 }
@@ -178,7 +193,7 @@ impl<W: Simd> PlaneTests<W> {
         [left_empty, right_empty]: [Mask<W>; 2],
     ) -> PlaneTests<W> {
         let negative = inv.cmp_lt(Vf::<W>::ZERO);
-        let (lo, hi) = (split.mul_add(inv, lo_off), split.mul_add(inv, hi_off));
+        let (lo, hi) = (split * inv + lo_off, split * inv + hi_off);
         let near_only = lo.cmp_gt(t_far);
         let far_only = !near_only & hi.cmp_lt(t_near);
         PlaneTests {
@@ -248,10 +263,14 @@ struct Group {
 
 impl Group {
     /// Idle lanes, no block of starts yet.
+    #[inline(always)]
     fn new() -> Group {
         Group {
             st: Lanes::new(),
-            walks: std::array::from_fn(|_| Walk::new()),
+            walks: array_fn(
+                #[inline(always)]
+                |_| Walk::new(),
+            ),
             best: [Hit::MISS; MAX_LANES],
             ray_of: [0; MAX_LANES],
             live: 0,
@@ -297,6 +316,7 @@ impl KdTree {
     /// are prefetched at the end of its step and load while the other group steps:
     /// twice the loads in flight, which pays in trees much larger than the cache
     /// (perf/log/stream.md, "Two groups of lanes").
+    #[inline(always)]
     pub(super) fn walk_lanes<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &[Ray],
@@ -321,8 +341,14 @@ impl KdTree {
             }
             return;
         }
-        while groups.iter().any(|g| g.live != 0) {
-            for g in groups.iter_mut().filter(|g| g.live != 0) {
+        while groups.iter().any(
+            #[inline(always)]
+            |g| g.live != 0,
+        ) {
+            for g in groups.iter_mut().filter(
+                #[inline(always)]
+                |g| g.live != 0,
+            ) {
                 self.lanes_step::<W, ANY_HIT>(g, rays, &mut next, &mut done);
                 for i in lanes_of(g.live) {
                     prefetch(&self.nodes[g.st.node[i] as usize]);
@@ -333,6 +359,7 @@ impl KdTree {
 
     /// Starts the next ray of `rays` from `*next` on that needs a walk in lane `i` of
     /// `g`, answering the others at once; the lane goes idle when none is left.
+    #[inline(always)]
     fn start_lane<W: Simd, const ANY_HIT: bool>(
         &self,
         g: &mut Group,
@@ -359,7 +386,15 @@ impl KdTree {
                 Begin::Miss => done(r, false, Hit::MISS),
                 Begin::Walk => {
                     g.walks[i].stack.copy_from(&s.stacks[k]);
-                    let axes = [&s.inv, &s.lo_off, &s.hi_off].map(|v| [0, 1, 2].map(|a| v[a][k]));
+                    let axes = [&s.inv, &s.lo_off, &s.hi_off].amap(
+                        #[inline(always)]
+                        |v| {
+                            [0, 1, 2].amap(
+                                #[inline(always)]
+                                |a| v[a][k],
+                            )
+                        },
+                    );
                     g.begin(i, r, s.node, (s.t_near[k], s.t_far[k]), axes);
                     return;
                 }
@@ -372,7 +407,10 @@ impl KdTree {
                     let walk = &mut g.walks[i];
                     if self.start_walk(ray, walk) {
                         let (x, interval) = (&walk.axes, (walk.t_near, walk.t_far));
-                        let axes = [&x.inv, &x.lo_off, &x.hi_off].map(|v| [v[0], v[1], v[2]]);
+                        let axes = [&x.inv, &x.lo_off, &x.hi_off].amap(
+                            #[inline(always)]
+                            |v| [v[0], v[1], v[2]],
+                        );
                         g.begin(i, r, 0, interval, axes);
                         return;
                     }
@@ -387,8 +425,19 @@ impl KdTree {
     /// operations in the same order (the box clip is [`clip_to_box_packet`]), so each
     /// lane that starts a walk starts it as the scalar set-up does; then the walking
     /// rays' shared descent ([`KdTree::descend_block`]).
-    #[inline(never)]
+    /// Out of line (a block starts once per `W::LANES` rays), compiled for `W`'s
+    /// instruction set ([`Simd::enter`]).
+    #[inline(always)]
     fn start_block<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
+        W::enter(
+            #[inline(always)]
+            || self.start_block_in::<W>(s, rays, first),
+        )
+    }
+
+    /// [`KdTree::start_block`]'s body.
+    #[inline(always)]
+    fn start_block_in<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
         let block = &rays[first..rays.len().min(first + W::LANES)];
         let p = RayPacket::<W>::from_rays(block);
         let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, &p, p.active);
@@ -442,15 +491,34 @@ impl KdTree {
     /// first step on which the rays part, and the first step that ends at the pops (a
     /// ray going only to empty children); `(t_near, t_far)` are the rays' intervals at
     /// the root, and `s` gets them at the shared node.
-    #[inline(never)]
+    /// Out of line, compiled for `W`'s instruction set ([`Simd::enter`]).
+    #[inline(always)]
     fn descend_block<W: Simd>(
+        &self,
+        s: &mut Starts,
+        walk: Mask<W>,
+        interval: (Vf<W>, Vf<W>),
+        axes: &Axes<W>,
+    ) {
+        W::enter(
+            #[inline(always)]
+            || self.descend_block_in::<W>(s, walk, interval, axes),
+        )
+    }
+
+    /// [`KdTree::descend_block`]'s body.
+    #[inline(always)]
+    fn descend_block_in<W: Simd>(
         &self,
         s: &mut Starts,
         walk: Mask<W>,
         (mut t_near, mut t_far): (Vf<W>, Vf<W>),
         axes: &Axes<W>,
     ) {
-        let every = |on: bool| Mask::<W>::from_bits(if on { W::all_bits() } else { 0 });
+        let every = inl(
+            #[inline(always)]
+            |on: bool| Mask::<W>::from_bits(if on { W::all_bits() } else { 0 }),
+        );
         let all = walk.bits();
         for stack in &mut s.stacks[..W::LANES] {
             stack.clear();
@@ -476,14 +544,20 @@ impl KdTree {
             if stop.bits() & all != 0 || (right != 0 && right != all) {
                 break;
             }
-            let far = |i: usize| n.children() + (p.negative.bits() >> i & 1 == 0) as u32;
+            let far = inl(
+                #[inline(always)]
+                |i: usize| n.children() + (p.negative.bits() >> i & 1 == 0) as u32,
+            );
             for i in lanes_of((walk & p.pushes()).bits()) {
                 s.stacks[i].push((far(i), p.entry.lane(i), t_far.lane(i)));
             }
             (t_near, t_far) = p.intervals(walk, (t_near, t_far));
             node = n.children() + (right != 0) as u32;
             steps += 1;
-            bump(|c| c.node_steps += all.count_ones() as u64);
+            bump(
+                #[inline(always)]
+                |c| c.node_steps += all.count_ones() as u64,
+            );
         }
         (s.node, s.steps) = (node, steps);
         store_f::<W>(t_near, &mut s.t_near);
@@ -505,19 +579,25 @@ impl KdTree {
         let one = Vu::<W>::splat(1);
         let st = &mut g.st;
         // Idle lanes sit at the root, a valid index.
-        let node = Vu::<W>::from_fn(|i| st.node[i]);
+        let node = Vu::<W>::from_fn(
+            #[inline(always)]
+            |i| st.node[i],
+        );
         let (split, bits) = Vu::<W>::gather_pairs(words, &st.node);
         let split = Vf::<W>::from_bits(split);
         let n = NodeLanes::<W>::decode(bits);
         let live_m = Mask::<W>::from_bits(g.live);
         let inner = live_m & !n.leaf;
-        let pick = |v: &[[f32; MAX_LANES]; 3]| {
-            select(
-                n.axis[0],
-                vf::<W>(&v[0]),
-                select(n.axis[1], vf::<W>(&v[1]), vf::<W>(&v[2])),
-            )
-        };
+        let pick = inl(
+            #[inline(always)]
+            |v: &[[f32; MAX_LANES]; 3]| {
+                select(
+                    n.axis[0],
+                    vf::<W>(&v[0]),
+                    select(n.axis[1], vf::<W>(&v[1]), vf::<W>(&v[2])),
+                )
+            },
+        );
         let (inv, lo_off, hi_off) = (pick(&st.inv), pick(&st.lo_off), pick(&st.hi_off));
         let (t_near, t_far) = (vf::<W>(&st.t_near), vf::<W>(&st.t_far));
         let p = PlaneTests::<W>::new(split, [inv, lo_off, hi_off], (t_near, t_far), n.empty);
@@ -540,7 +620,10 @@ impl KdTree {
             Vu::<W>::select(moving, near, node),
         );
         let (new_near, new_far) = p.intervals(moving, (t_near, t_far));
-        bump(|c| c.node_steps += inner.bits().count_ones() as u64);
+        bump(
+            #[inline(always)]
+            |c| c.node_steps += inner.bits().count_ones() as u64,
+        );
         for i in lanes_of(push) {
             g.walks[i]
                 .stack
@@ -664,6 +747,7 @@ mod tests {
     /// bit, and sends to the scalar set-up exactly the rays with a zero or subnormal
     /// direction component; a walking ray starts at the block's shared node with the
     /// interval and stack its scalar walk has after as many steps.
+    #[inline(always)]
     fn blocks_match_scalar<W: Simd>() {
         let g = random_soup(500, 0.2, 11);
         let tree = KdTree::build(&g);

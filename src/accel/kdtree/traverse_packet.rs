@@ -32,7 +32,10 @@ use super::traverse::{PLANE_SLACK, Stack, box_coord_max};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::Hit;
-use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, max_abs, prefetch};
+use crate::simd::{
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl,
+    max_abs, prefetch,
+};
 use std::cell::Cell;
 
 thread_local! {
@@ -41,6 +44,7 @@ thread_local! {
 
 /// Packets traced on this thread whose lanes disagreed on a direction sign and were
 /// split into coherent groups.
+#[inline(always)]
 pub fn packet_split_count() -> u64 {
     PACKET_SPLITS.with(Cell::get)
 }
@@ -56,7 +60,7 @@ struct Entry<W: Simd> {
 
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
 /// leaf limit `next_up(best.t)`.
-#[inline]
+#[inline(always)]
 fn next_up<F: Float>(v: F) -> F {
     let b = v.to_bits();
     let one = F::U::splat(1);
@@ -71,7 +75,7 @@ fn next_up<F: Float>(v: F) -> F {
 /// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it
 /// (never a lane with a NaN or infinite origin or direction, a zero direction or
 /// `!(t_min <= t_max)`, as in the scalar path).
-#[inline]
+#[inline(always)]
 pub(super) fn clip_to_box_packet<W: Simd>(
     b: &Aabb,
     rays: &RayPacket<W>,
@@ -103,14 +107,17 @@ pub(super) fn clip_to_box_packet<W: Simd>(
 
 /// Lane groups of `active` that agree on every direction sign, counting the packets
 /// that had to be split ([`packet_split_count`]).
-#[inline]
+#[inline(always)]
 pub(super) fn coherent_groups<W: Simd>(
     rays: &RayPacket<W>,
     active: LaneBits,
 ) -> ([LaneBits; 8], usize) {
     let (groups, count) = sign_groups(rays, active);
     if count > 1 {
-        PACKET_SPLITS.with(|c| c.set(c.get() + 1));
+        PACKET_SPLITS.with(
+            #[inline(always)]
+            |c| c.set(c.get() + 1),
+        );
     }
     (groups, count)
 }
@@ -119,7 +126,7 @@ pub(super) fn coherent_groups<W: Simd>(
 /// [`Simd::SCALAR_GROUP_MAX`] lanes, which gives the same answer bit for bit (the packet
 /// path's invariant) for less work than a packet step with most lanes masked off.
 /// Incoherent packets (cosine bounces) split into several groups, most of them small.
-#[inline]
+#[inline(always)]
 fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
     group.count_ones() <= W::SCALAR_GROUP_MAX
 }
@@ -127,6 +134,7 @@ fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
 /// How many groups the traversal walks the active lanes of `rays` in: none without an
 /// active lane, 1 for a packet whose lanes agree on every direction sign, else one per
 /// sign octant present. `raypack bench` reports the share of packets of a ray set that split.
+#[inline(always)]
 pub fn sign_group_count<W: Simd>(rays: &RayPacket<W>) -> usize {
     sign_groups(rays, rays.active.bits()).1
 }
@@ -134,21 +142,33 @@ pub fn sign_group_count<W: Simd>(rays: &RayPacket<W>) -> usize {
 /// Lane groups of `active` that agree on every direction sign: none when `active` is
 /// empty, one group when the packet is coherent, else one per sign octant present
 /// (zero components count as positive; they agree with either side), at most eight.
-#[inline]
+#[inline(always)]
 fn sign_groups<W: Simd>(rays: &RayPacket<W>, active: LaneBits) -> ([LaneBits; 8], usize) {
     if active == 0 {
         return ([0; 8], 0);
     }
-    let neg = rays.dir.map(|d| d.cmp_lt(Vf::<W>::ZERO).bits() & active);
-    let pos = rays.dir.map(|d| d.cmp_gt(Vf::<W>::ZERO).bits() & active);
+    let neg = rays.dir.amap(
+        #[inline(always)]
+        |d| d.cmp_lt(Vf::<W>::ZERO).bits() & active,
+    );
+    let pos = rays.dir.amap(
+        #[inline(always)]
+        |d| d.cmp_gt(Vf::<W>::ZERO).bits() & active,
+    );
     let mut groups = [0; 8];
-    if (0..3).all(|a| neg[a] == 0 || pos[a] == 0) {
+    if (0..3).all(
+        #[inline(always)]
+        |a| neg[a] == 0 || pos[a] == 0,
+    ) {
         groups[0] = active;
         return (groups, 1);
     }
     let mut count = 0;
     for key in 0..8 {
-        let pick = |a: usize| if key & (1 << a) != 0 { neg[a] } else { !neg[a] };
+        let pick = inl(
+            #[inline(always)]
+            |a: usize| if key & (1 << a) != 0 { neg[a] } else { !neg[a] },
+        );
         let group = active & pick(0) & pick(1) & pick(2);
         if group != 0 {
             groups[count] = group;
@@ -162,7 +182,20 @@ impl KdTree {
     /// Closest hits of the active lanes of `rays` (planes included); inactive lanes get
     /// [`crate::ray::Hit::MISS`]. Lane by lane, the same hit as
     /// [`crate::accel::Accel::intersect`], `t`, `u`, `v` bit-identical.
+    #[inline(always)]
     pub fn intersect_packet<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
+        dispatch!(W::LANES; self.intersect_packet_as::<@, W>(rays))
+    }
+
+    /// [`KdTree::intersect_packet`] of a packet of width `W` through backend `B`.
+    #[inline(always)]
+    fn intersect_packet_as<B: Simd, W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
+        self.intersect_packet_in::<B>(&rays.recast()).recast()
+    }
+
+    /// [`KdTree::intersect_packet`] at backend `W`, inside its entry.
+    #[inline(always)]
+    pub(super) fn intersect_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
         let mut best = HitPacket::miss();
         // Every lane is clipped to the tree's box once; only those that reach it are
         // grouped and walked.
@@ -195,7 +228,15 @@ impl KdTree {
         }
         if any_alone {
             let grouped = best;
-            best = HitPacket::from_lanes(|i| alone[i].unwrap_or_else(|| grouped.lane(i)));
+            best = HitPacket::from_lanes(
+                #[inline(always)]
+                |i| {
+                    alone[i].unwrap_or_else(
+                        #[inline(always)]
+                        || grouped.lane(i),
+                    )
+                },
+            );
         }
         self.prims
             .intersect_planes_packet(rays, rays.active, &mut best);
@@ -204,7 +245,20 @@ impl KdTree {
 
     /// Bit `i` set when active lane `i` is occluded between `t_min` and `t_max`; the
     /// same answer as [`crate::accel::Accel::occluded`] lane by lane.
+    #[inline(always)]
     pub fn occluded_packet<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
+        dispatch!(W::LANES; self.occluded_packet_as::<@, W>(rays))
+    }
+
+    /// [`KdTree::occluded_packet`] of a packet of width `W` through backend `B`.
+    #[inline(always)]
+    fn occluded_packet_as<B: Simd, W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
+        self.occluded_packet_in::<B>(&rays.recast())
+    }
+
+    /// [`KdTree::occluded_packet`] at backend `W`, inside its entry.
+    #[inline(always)]
+    pub(super) fn occluded_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
         let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
         let mut best = HitPacket::miss();
         let (reach, t_near, t_far) =
@@ -218,10 +272,10 @@ impl KdTree {
                     let i = left.trailing_zeros() as usize;
                     left &= left - 1;
                     let mut unused = Hit::MISS;
-                    if rays
-                        .lane(i)
-                        .is_some_and(|ray| self.traverse::<true>(&ray, &mut unused))
-                    {
+                    if rays.lane(i).is_some_and(
+                        #[inline(always)]
+                        |ray| self.traverse::<true>(&ray, &mut unused),
+                    ) {
                         occluded |= 1 << i;
                     }
                 }
@@ -248,6 +302,7 @@ impl KdTree {
     /// hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit anything
     /// in `(t_min, t_max)`, each lane leaving at its first hit, and stops once every
     /// lane of `active` has.
+    #[inline(always)]
     pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
         &self,
         rays: &RayPacket<W>,
@@ -261,23 +316,45 @@ impl KdTree {
             return occluded;
         }
         // Near is the left child on axes where the group's directions are not negative.
-        let negative = rays.dir.map(|d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any());
+        let negative = rays.dir.amap(
+            #[inline(always)]
+            |d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any(),
+        );
         // The same as bits (bit `a` for axis `a`), so that the next node's index is a
         // shift away from the node just loaded, not a dependent load.
-        let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
-        let zero = rays.dir.map(|d| d.cmp_eq(Vf::<W>::ZERO));
-        let any_zero = zero.map(|z| (lanes & z).any());
+        let neg_bits = (0..3).fold(
+            0u32,
+            #[inline(always)]
+            |b, a| b | (negative[a] as u32) << a,
+        );
+        let zero = rays.dir.amap(
+            #[inline(always)]
+            |d| d.cmp_eq(Vf::<W>::ZERO),
+        );
+        let any_zero = zero.amap(
+            #[inline(always)]
+            |z| (lanes & z).any(),
+        );
         // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
         let coord_max = self.coord_max();
         let o_max = max_abs(&rays.org);
-        let margins: [Vf<W>; 3] =
-            std::array::from_fn(|a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK));
+        let margins: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK),
+        );
         // The band's ends at a plane as `split * inv + off` (`RayAxes`).
-        let slacks: [Vf<W>; 3] = std::array::from_fn(|a| margins[a] * rays.inv_dir[a].abs());
-        let lo_off: [Vf<W>; 3] =
-            std::array::from_fn(|a| -(rays.org[a] * rays.inv_dir[a]) - slacks[a]);
-        let hi_off: [Vf<W>; 3] =
-            std::array::from_fn(|a| -(rays.org[a] * rays.inv_dir[a]) + slacks[a]);
+        let slacks: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |a| margins[a] * rays.inv_dir[a].abs(),
+        );
+        let lo_off: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |a| -(rays.org[a] * rays.inv_dir[a]) - slacks[a],
+        );
+        let hi_off: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |a| -(rays.org[a] * rays.inv_dir[a]) + slacks[a],
+        );
         let mut stack = Stack::<Entry<W>>::new();
         'walk: loop {
             let n = self.nodes[node as usize];
@@ -286,12 +363,22 @@ impl KdTree {
             'visit: {
                 if n.is_leaf() {
                     let prims = self.leaf_prims(&n);
-                    bump(|c| c.leaf_visits += 1);
+                    bump(
+                        #[inline(always)]
+                        |c| c.leaf_visits += 1,
+                    );
                     // Walks never enter empty leaves but a tree that is one.
                     if !prims.is_empty() {
                         let mut hit = [Mask::<W>::NONE];
                         let one = std::slice::from_mut(best);
-                        self.leaf_groups::<W, 1, ANY_HIT>(prims, |_| rays, &[lanes], one, &mut hit);
+                        self.leaf_groups::<W, 1, ANY_HIT>(
+                            prims,
+                            #[inline(always)]
+                            |_| rays,
+                            &[lanes],
+                            one,
+                            &mut hit,
+                        );
                         occluded |= hit[0];
                         if ANY_HIT && (active & !occluded).none() {
                             return occluded;
@@ -299,14 +386,17 @@ impl KdTree {
                     }
                     break 'visit;
                 }
-                bump(|c| c.node_steps += 1);
+                bump(
+                    #[inline(always)]
+                    |c| c.node_steps += 1,
+                );
                 let axis = n.axis();
                 let children = n.children();
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
                 let margin = margins[axis];
-                let lo = split.mul_add(inv, lo_off[axis]);
-                let hi = split.mul_add(inv, hi_off[axis]);
+                let lo = split * inv + lo_off[axis];
+                let hi = split * inv + hi_off[axis];
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
                 let (near_only, far_only) = if any_zero[axis] {
@@ -432,7 +522,10 @@ impl KdTree {
                 let mut any = Mask::<W>::NONE;
                 for g in 0..G {
                     if live[g].any() {
-                        bump(|c| c.prim_tests += 1);
+                        bump(
+                            #[inline(always)]
+                            |c| c.prim_tests += 1,
+                        );
                         let hits =
                             self.prims
                                 .intersect_prim_packet(p, rays(g), live[g], rays(g).t_max);
@@ -454,10 +547,21 @@ impl KdTree {
                     prefetch(c);
                 }
             }
-            let mut limit: [Vf<W>; G] =
-                std::array::from_fn(|g| next_up(best[g].t).min(rays(g).t_max));
-            let groups = lanes.iter().filter(|l| l.any()).count() as u64;
-            bump(|c| c.prim_tests += groups * prims.len() as u64);
+            let mut limit: [Vf<W>; G] = array_fn(
+                #[inline(always)]
+                |g| next_up(best[g].t).min(rays(g).t_max),
+            );
+            let groups = lanes
+                .iter()
+                .filter(
+                    #[inline(always)]
+                    |l| l.any(),
+                )
+                .count() as u64;
+            bump(
+                #[inline(always)]
+                |c| c.prim_tests += groups * prims.len() as u64,
+            );
             for &p in prims {
                 let id = self.prims.id(p);
                 for g in 0..G {

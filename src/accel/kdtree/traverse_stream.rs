@@ -14,7 +14,7 @@
 use super::KdTree;
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{Simd, W4, W8, W16, native_lanes};
+use crate::simd::{Simd, W4, W8, W16, dispatch, native_lanes};
 
 /// Trees with fewer nodes answer streams ray by ray (perf/log/stream.md, "Small trees").
 pub const STREAM_MIN_NODES: usize = 8192;
@@ -72,6 +72,12 @@ impl KdTree {
     /// tree's size (tests run every width and both group counts on small trees).
     pub fn intersect_lanes_in<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit], groups: usize) {
         assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+        dispatch!(W::LANES; self.intersect_lanes_as::<@>(rays, hits, groups))
+    }
+
+    /// [`KdTree::intersect_lanes_in`] at backend `W`, inside its entry.
+    #[inline(always)]
+    fn intersect_lanes_as<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit], groups: usize) {
         self.walk_lanes::<W, false>(rays, groups, |i, _, mut best| {
             self.prims.intersect_planes(&rays[i], &mut best);
             hits[i] = if best.is_hit() { best } else { Hit::MISS };
@@ -93,6 +99,12 @@ impl KdTree {
             occluded.len(),
             "occluded_stream: one answer per ray"
         );
+        dispatch!(W::LANES; self.occluded_lanes_as::<@>(rays, occluded, groups))
+    }
+
+    /// [`KdTree::occluded_lanes_in`] at backend `W`, inside its entry.
+    #[inline(always)]
+    fn occluded_lanes_as<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool], groups: usize) {
         self.walk_lanes::<W, true>(rays, groups, |i, answer, _| occluded[i] = answer);
     }
 }

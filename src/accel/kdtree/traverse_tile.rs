@@ -37,7 +37,7 @@ use super::traverse::{PLANE_SLACK, Stack};
 use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneMask, Mask, Simd, Vf, max_abs};
+use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs};
 use std::cell::Cell;
 
 /// Rays per tile.
@@ -69,18 +69,23 @@ thread_local! {
 }
 
 /// The tiles traced on this thread so far.
+#[inline(always)]
 pub fn tile_counts() -> TileCounts {
     COUNTS.with(Cell::get)
 }
 
+#[inline(always)]
 fn count(fallback: bool, depth: u64) {
-    COUNTS.with(|c| {
-        let mut v = c.get();
-        v.tiles += 1;
-        v.fallbacks += fallback as u64;
-        v.entry_depth += depth;
-        c.set(v);
-    });
+    COUNTS.with(
+        #[inline(always)]
+        |c| {
+            let mut v = c.get();
+            v.tiles += 1;
+            v.fallbacks += fallback as u64;
+            v.entry_depth += depth;
+            c.set(v);
+        },
+    );
 }
 
 /// One pending far child of a tile: its node and, per group, the lanes that need it and
@@ -110,15 +115,25 @@ impl KdTree {
     /// Closest hits of `rays` (at most [`TILE_RAYS`]) into `out`, groups of `W::LANES`
     /// sharing an entry point; lane by lane the answer of
     /// [`crate::accel::Accel::intersect`], bit for bit.
+    #[inline(always)]
     pub fn intersect_tile<W: Simd>(&self, rays: &[Ray], out: &mut [Hit]) {
+        dispatch!(W::LANES; self.intersect_tile_in::<@>(rays, out))
+    }
+
+    /// [`KdTree::intersect_tile`] at backend `W`, inside its entry.
+    #[inline(always)]
+    fn intersect_tile_in<W: Simd>(&self, rays: &[Ray], out: &mut [Hit]) {
         assert!(rays.len() <= TILE_RAYS && rays.len() == out.len());
         let n = rays.len().div_ceil(W::LANES);
         let groups = groups::<W>(rays);
         let groups = &groups[..n];
-        let actives: [Mask<W>; MAX_GROUPS] = std::array::from_fn(|g| match groups.get(g) {
-            Some(p) => p.active,
-            None => Mask::<W>::NONE,
-        });
+        let actives: [Mask<W>; MAX_GROUPS] = array_fn(
+            #[inline(always)]
+            |g| match groups.get(g) {
+                Some(p) => p.active,
+                None => Mask::<W>::NONE,
+            },
+        );
         let mut best = [HitPacket::<W>::miss(); MAX_GROUPS];
         match self.tile_entry(groups, &actives[..n]) {
             Some((node, clips)) => {
@@ -131,7 +146,7 @@ impl KdTree {
             }
             None => {
                 for (g, p) in groups.iter().enumerate() {
-                    best[g] = self.intersect_packet(p);
+                    best[g] = self.intersect_packet_in(p);
                 }
             }
         }
@@ -142,19 +157,32 @@ impl KdTree {
 
     /// Bit `i` set when ray `i` of `rays` (at most [`TILE_RAYS`]) is occluded; the answer
     /// of [`crate::accel::Accel::occluded`] ray by ray.
+    #[inline(always)]
     pub fn occluded_tile<W: Simd>(&self, rays: &[Ray]) -> u64 {
+        dispatch!(W::LANES; self.occluded_tile_in::<@>(rays))
+    }
+
+    /// [`KdTree::occluded_tile`] at backend `W`, inside its entry.
+    #[inline(always)]
+    fn occluded_tile_in<W: Simd>(&self, rays: &[Ray]) -> u64 {
         assert!(rays.len() <= TILE_RAYS);
         let n = rays.len().div_ceil(W::LANES);
         let groups = groups::<W>(rays);
         let groups = &groups[..n];
-        let by_plane: [Mask<W>; MAX_GROUPS] = std::array::from_fn(|g| match groups.get(g) {
-            Some(p) => self.prims.planes_occlude_packet(p, p.active),
-            None => Mask::<W>::NONE,
-        });
-        let actives: [Mask<W>; MAX_GROUPS] = std::array::from_fn(|g| match groups.get(g) {
-            Some(p) => p.active & !by_plane[g],
-            None => Mask::<W>::NONE,
-        });
+        let by_plane: [Mask<W>; MAX_GROUPS] = array_fn(
+            #[inline(always)]
+            |g| match groups.get(g) {
+                Some(p) => self.prims.planes_occlude_packet(p, p.active),
+                None => Mask::<W>::NONE,
+            },
+        );
+        let actives: [Mask<W>; MAX_GROUPS] = array_fn(
+            #[inline(always)]
+            |g| match groups.get(g) {
+                Some(p) => p.active & !by_plane[g],
+                None => Mask::<W>::NONE,
+            },
+        );
         let mut bits = 0u64;
         match self.tile_entry(groups, &actives[..n]) {
             Some((node, clips)) => {
@@ -167,7 +195,7 @@ impl KdTree {
             }
             None => {
                 for (g, p) in groups.iter().enumerate() {
-                    bits |= (self.occluded_packet(p) as u64) << (g * W::LANES);
+                    bits |= (self.occluded_packet_in(p) as u64) << (g * W::LANES);
                 }
             }
         }
@@ -180,6 +208,7 @@ impl KdTree {
     /// traversal). Closest hit: folds hits into `best`; with `ANY_HIT`, sets the
     /// occluded lanes in `occluded`.
     #[allow(clippy::type_complexity)]
+    #[inline(always)]
     fn tile_walk<W: Simd, const ANY_HIT: bool>(
         &self,
         groups: &[RayPacket<W>],
@@ -216,20 +245,35 @@ impl KdTree {
     ) {
         let splat = Vf::<W>::splat;
         let n_groups = groups.len().min(G);
-        let mut lanes: [Mask<W>; G] = std::array::from_fn(|g| {
-            if g < n_groups {
-                clips[g].0
-            } else {
-                Mask::<W>::NONE
-            }
-        });
-        let mut t_near: [Vf<W>; G] = std::array::from_fn(|g| clips[g].1);
-        let mut t_far: [Vf<W>; G] = std::array::from_fn(|g| clips[g].2);
-        if lanes.iter().all(|l| l.none()) {
+        let mut lanes: [Mask<W>; G] = array_fn(
+            #[inline(always)]
+            |g| {
+                if g < n_groups {
+                    clips[g].0
+                } else {
+                    Mask::<W>::NONE
+                }
+            },
+        );
+        let mut t_near: [Vf<W>; G] = array_fn(
+            #[inline(always)]
+            |g| clips[g].1,
+        );
+        let mut t_far: [Vf<W>; G] = array_fn(
+            #[inline(always)]
+            |g| clips[g].2,
+        );
+        if union::<W, G>(&lanes).none() {
             return;
         }
-        let rays = |g: usize| &groups[g.min(n_groups - 1)];
-        let actives: [Mask<W>; G] = std::array::from_fn(|g| lanes[g]);
+        let rays = inl(
+            #[inline(always)]
+            |g: usize| &groups[g.min(n_groups - 1)],
+        );
+        let actives: [Mask<W>; G] = array_fn(
+            #[inline(always)]
+            |g| lanes[g],
+        );
         let mut negative = [false; 3];
         for (g, l) in lanes.iter().enumerate() {
             for (a, n) in negative.iter_mut().enumerate() {
@@ -239,22 +283,46 @@ impl KdTree {
         // Per axis, the groups' origins, reciprocals and plane slacks side by side, so
         // that a step loads them at one offset.
         // As bits, so that the next node's index is a shift from the node just loaded.
-        let neg_bits = (0..3).fold(0u32, |b, a| b | (negative[a] as u32) << a);
+        let neg_bits = (0..3).fold(
+            0u32,
+            #[inline(always)]
+            |b, a| b | (negative[a] as u32) << a,
+        );
         let coord_max = self.coord_max();
-        let o_max: [Vf<W>; G] = std::array::from_fn(|g| max_abs(&rays(g).org));
-        let inv: [[Vf<W>; G]; 3] =
-            std::array::from_fn(|a| std::array::from_fn(|g| rays(g).inv_dir[a]));
+        let o_max: [Vf<W>; G] = array_fn(
+            #[inline(always)]
+            |g| max_abs(&rays(g).org),
+        );
+        let inv: [[Vf<W>; G]; 3] = array_fn(
+            #[inline(always)]
+            |a| {
+                array_fn(
+                    #[inline(always)]
+                    |g| rays(g).inv_dir[a],
+                )
+            },
+        );
         // The band's ends at a plane as `split * inv + off` (`RayAxes`).
-        let offs = |sign: f32| -> [[Vf<W>; G]; 3] {
-            std::array::from_fn(|a| {
-                std::array::from_fn(|g| {
-                    let slack =
-                        (splat(coord_max[a]) + o_max[g]) * splat(PLANE_SLACK) * inv[a][g].abs();
-                    let neg = -(rays(g).org[a] * inv[a][g]);
-                    if sign < 0.0 { neg - slack } else { neg + slack }
-                })
-            })
-        };
+        let offs = inl(
+            #[inline(always)]
+            |sign: f32| -> [[Vf<W>; G]; 3] {
+                array_fn(
+                    #[inline(always)]
+                    |a| {
+                        array_fn(
+                            #[inline(always)]
+                            |g| {
+                                let slack = (splat(coord_max[a]) + o_max[g])
+                                    * splat(PLANE_SLACK)
+                                    * inv[a][g].abs();
+                                let neg = -(rays(g).org[a] * inv[a][g]);
+                                if sign < 0.0 { neg - slack } else { neg + slack }
+                            },
+                        )
+                    },
+                )
+            },
+        );
         let (lo_offs, hi_offs) = (offs(-1.0), offs(1.0));
         let mut stack = Stack::<TileEntry<W, G>>::new();
         'walk: loop {
@@ -264,27 +332,51 @@ impl KdTree {
             'visit: {
                 if n.is_leaf() {
                     let prims = self.leaf_prims(&n);
-                    bump(|c| c.leaf_visits += 1);
+                    bump(
+                        #[inline(always)]
+                        |c| c.leaf_visits += 1,
+                    );
                     if !prims.is_empty() {
                         self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
-                        if ANY_HIT && (0..G).all(|g| (actives[g] & !occluded[g]).none()) {
+                        if ANY_HIT
+                            && union::<W, G>(&array_fn(
+                                #[inline(always)]
+                                |g| actives[g] & !occluded[g],
+                            ))
+                            .none()
+                        {
                             return;
                         }
                     }
                     break 'visit;
                 }
-                bump(|c| c.node_steps += 1);
+                bump(
+                    #[inline(always)]
+                    |c| c.node_steps += 1,
+                );
                 let axis = n.axis();
                 let children = n.children();
                 let split = splat(n.split);
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
                 let (inv, lo_off, hi_off) = (&inv[axis], &lo_offs[axis], &hi_offs[axis]);
-                let lo: [Vf<W>; G] = std::array::from_fn(|g| split.mul_add(inv[g], lo_off[g]));
-                let hi: [Vf<W>; G] = std::array::from_fn(|g| split.mul_add(inv[g], hi_off[g]));
-                let near_only: [Mask<W>; G] = std::array::from_fn(|g| lo[g].cmp_gt(t_far[g]));
-                let mut far_lanes: [Mask<W>; G] = std::array::from_fn(|g| lanes[g] & !near_only[g]);
-                if far_lanes.iter().fold(Mask::<W>::NONE, |a, &m| a | m).none() {
+                let lo: [Vf<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| split * inv[g] + lo_off[g],
+                );
+                let hi: [Vf<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| split * inv[g] + hi_off[g],
+                );
+                let near_only: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lo[g].cmp_gt(t_far[g]),
+                );
+                let mut far_lanes: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lanes[g] & !near_only[g],
+                );
+                if union::<W, G>(&far_lanes).none() {
                     // The commonest step: every lane goes near only (an empty near
                     // leaf holds nothing for them).
                     if n.empty_near_far(flip) & 1 != 0 {
@@ -297,15 +389,20 @@ impl KdTree {
                 let empty = n.empty_near_far(flip);
                 // As in the scalar path, near-only wins when both tests pass. No lane
                 // goes to an empty leaf: it holds nothing.
-                let mut near_lanes: [Mask<W>; G] =
-                    std::array::from_fn(|g| lanes[g] & !(hi[g].cmp_lt(t_near[g]) & !near_only[g]));
+                let mut near_lanes: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lanes[g] & !(hi[g].cmp_lt(t_near[g]) & !near_only[g]),
+                );
                 if empty & 1 != 0 {
                     near_lanes = [Mask::<W>::NONE; G];
                 }
                 if empty & 2 != 0 {
                     far_lanes = [Mask::<W>::NONE; G];
                 }
-                let any = |m: &[Mask<W>; G]| m.iter().fold(Mask::<W>::NONE, |a, &l| a | l).any();
+                let any = inl(
+                    #[inline(always)]
+                    |m: &[Mask<W>; G]| union::<W, G>(m).any(),
+                );
                 if !any(&far_lanes) {
                     if !any(&near_lanes) {
                         break 'visit;
@@ -314,7 +411,10 @@ impl KdTree {
                     lanes = near_lanes;
                     // The near interval of lanes that would also have gone far;
                     // near-only lanes keep theirs (`hi > t_far` there).
-                    t_far = std::array::from_fn(|g| hi[g].min_lt(t_far[g]));
+                    t_far = array_fn(
+                        #[inline(always)]
+                        |g| hi[g].min_lt(t_far[g]),
+                    );
                 } else if !any(&near_lanes) {
                     node = far;
                     lanes = far_lanes;
@@ -322,7 +422,10 @@ impl KdTree {
                         // The interval the pop of the far child would have given the
                         // lanes that went near first (far-only lanes keep theirs), and
                         // the pop's test against their best hits.
-                        t_near = std::array::from_fn(|g| lo[g].max_gt(t_near[g]));
+                        t_near = array_fn(
+                            #[inline(always)]
+                            |g| lo[g].max_gt(t_near[g]),
+                        );
                         if !ANY_HIT {
                             for g in 0..G {
                                 lanes[g] &= !t_near[g].cmp_gt(best[g].t);
@@ -336,12 +439,18 @@ impl KdTree {
                     stack.push(TileEntry {
                         node: far,
                         lanes: far_lanes,
-                        t_near: std::array::from_fn(|g| lo[g].max_gt(t_near[g])),
+                        t_near: array_fn(
+                            #[inline(always)]
+                            |g| lo[g].max_gt(t_near[g]),
+                        ),
                         t_far,
                     });
                     node = near;
                     lanes = near_lanes;
-                    t_far = std::array::from_fn(|g| hi[g].min_lt(t_far[g]));
+                    t_far = array_fn(
+                        #[inline(always)]
+                        |g| hi[g].min_lt(t_far[g]),
+                    );
                 }
                 continue 'walk;
             }
@@ -370,13 +479,17 @@ impl KdTree {
     /// and interval clipped to the tree's box; `None` where the tile falls back to one
     /// packet per group (see the module docs). Counts the tile.
     #[allow(clippy::type_complexity)]
+    #[inline(always)]
     fn tile_entry<W: Simd>(
         &self,
         groups: &[RayPacket<W>],
         actives: &[Mask<W>],
     ) -> Option<(u32, [(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS])> {
         let Some(bound) = (groups.len() > 1)
-            .then(|| self.tile_bound(groups, actives))
+            .then(
+                #[inline(always)]
+                || self.tile_bound(groups, actives),
+            )
             .flatten()
         else {
             count(true, 0);
@@ -395,7 +508,10 @@ impl KdTree {
             if n.is_leaf() {
                 break;
             }
-            bump(|c| c.node_steps += 1);
+            bump(
+                #[inline(always)]
+                |c| c.node_steps += 1,
+            );
             let a = n.axis();
             let (d_lo, d_hi) = (n.split - b.o_hi[a], n.split - b.o_lo[a]);
             let corners = [
@@ -430,6 +546,7 @@ impl KdTree {
     /// The groups' clipped lanes and intervals and the tile's bound; `None` when the
     /// lanes disagree on a direction sign or have a zero or non-invertible component.
     #[allow(clippy::type_complexity)]
+    #[inline(always)]
     fn tile_bound<W: Simd>(
         &self,
         groups: &[RayPacket<W>],
@@ -484,8 +601,26 @@ impl KdTree {
             t_near_min = t_near_min.min_lt(select(lanes, t_near, inf));
             t_far_max = t_far_max.max_gt(select(lanes, t_far, ninf));
         }
-        let lanes_min = |v: Vf<W>| (0..W::LANES).fold(f32::INFINITY, |m, i| m.min(v.lane(i)));
-        let lanes_max = |v: Vf<W>, init: f32| (0..W::LANES).fold(init, |m, i| m.max(v.lane(i)));
+        let lanes_min = inl(
+            #[inline(always)]
+            |v: Vf<W>| {
+                (0..W::LANES).fold(
+                    f32::INFINITY,
+                    #[inline(always)]
+                    |m, i| m.min(v.lane(i)),
+                )
+            },
+        );
+        let lanes_max = inl(
+            #[inline(always)]
+            |v: Vf<W>, init: f32| {
+                (0..W::LANES).fold(
+                    init,
+                    #[inline(always)]
+                    |m, i| m.max(v.lane(i)),
+                )
+            },
+        );
         for a in 0..3 {
             b.o_lo[a] = lanes_min(o_lo[a]);
             b.o_hi[a] = lanes_max(o_hi[a], f32::NEG_INFINITY);
@@ -495,7 +630,10 @@ impl KdTree {
         }
         b.t_near_min = lanes_min(t_near_min);
         b.t_far_max = lanes_max(t_far_max, f32::NEG_INFINITY);
-        if (0..3).any(|a| neg[a] && pos[a]) {
+        if (0..3).any(
+            #[inline(always)]
+            |a| neg[a] && pos[a],
+        ) {
             return None;
         }
         b.negative = neg;
@@ -505,6 +643,7 @@ impl KdTree {
 
 /// `rays` as packets of `W::LANES` consecutive rays (the last one partial); slots past
 /// them repeat the first packet and are never read.
+#[inline(always)]
 fn groups<W: Simd>(rays: &[Ray]) -> [RayPacket<W>; MAX_GROUPS] {
     let first = RayPacket::<W>::from_rays(&rays[..rays.len().min(W::LANES)]);
     let mut out = [first; MAX_GROUPS];
@@ -513,4 +652,15 @@ fn groups<W: Simd>(rays: &[Ray]) -> [RayPacket<W>; MAX_GROUPS] {
     }
     debug_assert!(out[0].active.bits() == low_bits(rays.len().min(W::LANES)));
     out
+}
+
+/// The lanes set in any of the groups' masks (a loop, not `Iterator::fold`, which LLVM
+/// may keep out of line: see [`crate::simd::inl`]).
+#[inline(always)]
+fn union<W: Simd, const G: usize>(masks: &[Mask<W>; G]) -> Mask<W> {
+    let mut all = Mask::<W>::NONE;
+    for &m in masks {
+        all |= m;
+    }
+    all
 }
