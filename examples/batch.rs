@@ -5,7 +5,9 @@
 //!
 //!     cargo run --release --example batch [MESH.obj] [RAYS]
 //!
-//! The mesh defaults to the repository's `scenes/knot.obj`; RAYS to 1,000,000.
+//! The mesh defaults to the repository's `scenes/knot.obj`; RAYS to 1,000,000. RAYS may
+//! also be a `.rays` file (`raypack rays`, ../shared/RAYS.md): then those rays are traced,
+//! the same rays `raypack bench --rays` times (perf/isa.md compares the two).
 
 use raypack::prelude::*;
 use raypack::rng::Pcg32;
@@ -14,11 +16,14 @@ use std::time::Instant;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let path = args.next().unwrap_or_else(|| "scenes/knot.obj".into());
-    let count: usize = match args.next() {
-        Some(n) => n
+    let rays_arg = args.next();
+    let from_file = rays_arg.as_deref().filter(|a| a.ends_with(".rays"));
+    let count: usize = match (&rays_arg, from_file) {
+        (_, Some(_)) => 0,
+        (Some(n), None) => n
             .parse()
-            .map_err(|_| format!("RAYS: `{n}` is not a count"))?,
-        None => 1_000_000,
+            .map_err(|_| format!("RAYS: `{n}` is neither a count nor a .rays file"))?,
+        (None, None) => 1_000_000,
     };
     let start = Instant::now();
     let tree = KdTree::build(&Geometry::from(obj::load(path.as_ref())?));
@@ -32,15 +37,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let radius = bounds.diagonal();
     let mut rng = Pcg32::new(7, 1);
     let mut unit = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-    let rays: Vec<Ray> = (0..count)
-        .map(|_| {
-            let org = centre + (unit() * 2.0 - Vec3::ONE).normalize_or(Vec3::X) * radius;
-            let target = bounds.min + unit() * (bounds.max - bounds.min);
-            Ray::new(org, (target - org).normalize(), 0.0, f32::INFINITY)
-        })
-        .collect();
+    let rays: Vec<Ray> = match from_file {
+        Some(file) => raypack::rayset::read_rays(file.as_ref())?.rays,
+        None => (0..count)
+            .map(|_| {
+                let org = centre + (unit() * 2.0 - Vec3::ONE).normalize_or(Vec3::X) * radius;
+                let target = bounds.min + unit() * (bounds.max - bounds.min);
+                Ray::new(org, (target - org).normalize(), 0.0, f32::INFINITY)
+            })
+            .collect(),
+    };
 
     let threads = rayon::current_num_threads();
+    // The kernels' instruction set: the widest this CPU runs, whatever flags built this.
+    println!("kernels: {}", raypack::simd::Isa::in_use());
     let mut hits = vec![Hit::MISS; rays.len()];
     let mut blocked = vec![false; rays.len()];
     let closest = median_rate(rays.len(), || tree.intersect_batch(&rays, &mut hits));

@@ -614,8 +614,8 @@ def page(meta, parts):
         f"- Date: {meta['date']}",
         f"- Commit: `{meta['commit']}`{dirty}",
         f"- CPU: {meta['cpu']}, {meta['cores']} logical cores; vector ISA from "
-        f"/proc/cpuinfo: {meta['isa']}; the raypack binary is built for "
-        f"{meta.get('simd', 'its build machine (not reported: no bench run)')}",
+        f"/proc/cpuinfo: {meta['isa']}; raypack (a default build, no `-C target-cpu`) ran "
+        f"its {meta.get('simd', '(not reported: no bench run)')} kernels",
         f"- Peers: {meta['peers']}",
         f"- 1-minute load average, sampled through the run: {lo:.2f} to {hi:.2f} on "
         f"{meta['cores']} cores" + (

@@ -237,3 +237,45 @@ fn rays_starting_on_edges_corners_and_split_planes_are_defined() {
         assert_agree(&g, &tree, &rays, name);
     }
 }
+
+/// A direction component so small that `org * (1 / d)` overflows (|d| below
+/// |org| / f32::MAX, a normal or subnormal float): the node step's band ends become
+/// infinite or NaN, and every path must still find brute force's hit. A fused
+/// multiply-add in the node step got this wrong (an exact product plus an overflowed
+/// offset gave -inf where the plane lay ahead, and the walk skipped the hit's cell), so
+/// every path rounds the step twice (src/accel/kdtree/traverse.rs).
+#[test]
+fn overflowing_inverse_directions_agree_with_brute_force() {
+    let g = transformed(&mixed_primitives(), 20.0, Vec3::new(8.0, -12.0, 15.0));
+    let tree = KdTree::build(&g);
+    let bounds = tree.bounds();
+    let mut rng = Rng::new(17);
+    let tiny = [1.5e-38, -1.2e-38, 3e-39, -1e-45, 1e-37, -2e-36];
+    let rays: Vec<Ray> = (0..common::ray_count(1 << 13, 1 << 16))
+        .map(|i| {
+            let org = rng.point(bounds.min, bounds.max);
+            let mut d = rng.unit_vector();
+            d[i % 3] = tiny[(i / 3) % tiny.len()];
+            Ray::new(org, d.normalize(), 0.0, f32::INFINITY)
+        })
+        .collect();
+    let hits = assert_agree(&g, &tree, &rays, "tiny direction components");
+    assert!(hits > rays.len() / 4, "only {hits} hits");
+    // The lane walks (streams), under every instruction set.
+    let brute = BruteForce::new(&g);
+    let want: Vec<_> = rays.iter().map(|r| hit_bits(brute.intersect(r))).collect();
+    common::each_isa(|| {
+        let mut got = vec![raypack::ray::Hit::MISS; rays.len()];
+        tree.intersect_lanes_in::<W8>(&rays, &mut got, 1);
+        for (i, (h, w)) in got.iter().zip(&want).enumerate() {
+            let h = hit_bits(h.is_hit().then_some(*h));
+            assert_eq!(
+                h,
+                *w,
+                "stream ({}): ray {i} {:?}",
+                raypack::simd::Isa::in_use(),
+                rays[i]
+            );
+        }
+    });
+}

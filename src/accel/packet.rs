@@ -3,8 +3,8 @@
 
 use crate::ray::{DIR_MAX, DIR_MIN, Hit, NO_HIT, Ray};
 use crate::simd::{
-    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, inl, max_abs, recast,
-    recast_mask,
+    AMap, Float, Isa, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, dispatch, inl,
+    max_abs, recast, recast_mask, recast_u,
 };
 use glam::Vec3;
 
@@ -56,6 +56,9 @@ impl<W: Simd> RayPacket<W> {
             W::LANES
         );
         if rays.len() == W::LANES {
+            if handed_on::<W>() {
+                return dispatch!(W::LANES; fn full_as::<@, W>(rays));
+            }
             // A full packet: one transpose of the rays' records.
             return RayPacket::full(Vf::<W>::transpose8(Ray::as_records(rays)));
         }
@@ -109,6 +112,9 @@ impl<W: Simd> RayPacket<W> {
             lo.len() == W::LANES / 2 && hi.len() == W::LANES / 2,
             "two runs of half a packet"
         );
+        if handed_on::<W>() {
+            return dispatch!(W::LANES; fn halves_as::<@, W>(lo, hi));
+        }
         RayPacket::full(Vf::<W>::transpose8_halves(
             Ray::as_records(lo),
             Ray::as_records(hi),
@@ -284,10 +290,7 @@ impl<W: Simd> HitPacket<W> {
             t: recast(self.t),
             u: recast(self.u),
             v: recast(self.v),
-            prim: Vu::<B>::from_fn(
-                #[inline(always)]
-                |i| self.prim.lane(i),
-            ),
+            prim: recast_u(self.prim),
         }
     }
 
@@ -322,6 +325,9 @@ impl<W: Simd> HitPacket<W> {
     /// transpose ([`Float::transpose4_into`]).
     #[inline(always)]
     pub fn write(&self, out: &mut [Hit]) {
+        if handed_on::<W>() {
+            return dispatch!(W::LANES; fn write_as::<@, W>(self, out));
+        }
         let prim = Vf::<W>::from_bits(self.prim);
         Vf::<W>::transpose4_into([self.t, self.u, self.v, prim], Hit::as_records_mut(out));
     }
@@ -336,4 +342,37 @@ impl<W: Simd> HitPacket<W> {
             prim: self.prim.lane(i),
         }
     }
+}
+
+/// True when `W` is a portable width of 8 or 16 lanes and a wider instruction set is in
+/// use: the transposes that fill and empty its packets then run in that set's backend,
+/// inside its entry. In a baseline build `wide` transposes 8 and 16 lanes one lane at a
+/// time; AVX2 does a full packet's in a few shuffles (perf/isa.md).
+#[inline(always)]
+fn handed_on<W: Simd>() -> bool {
+    W::ISA == Isa::Sse && W::LANES > 4 && Isa::in_use() != Isa::Sse
+}
+
+/// [`RayPacket::from_rays`] of a full packet, transposed by backend `B`.
+#[inline(always)]
+fn full_as<B: Simd, W: Simd>(rays: &[Ray]) -> RayPacket<W> {
+    RayPacket::<B>::full(Vf::<B>::transpose8(Ray::as_records(rays))).recast()
+}
+
+/// [`RayPacket::from_halves`], transposed by backend `B`.
+#[inline(always)]
+fn halves_as<B: Simd, W: Simd>(lo: &[Ray], hi: &[Ray]) -> RayPacket<W> {
+    RayPacket::<B>::full(Vf::<B>::transpose8_halves(
+        Ray::as_records(lo),
+        Ray::as_records(hi),
+    ))
+    .recast()
+}
+
+/// [`HitPacket::write`], transposed by backend `B`.
+#[inline(always)]
+fn write_as<B: Simd, W: Simd>(hits: &HitPacket<W>, out: &mut [Hit]) {
+    let hits = hits.recast::<B>();
+    let prim = Vf::<B>::from_bits(hits.prim);
+    Vf::<B>::transpose4_into([hits.t, hits.u, hits.v, prim], Hit::as_records_mut(out));
 }

@@ -56,9 +56,27 @@ impl Isa {
         }
     }
 
-    /// True when this CPU runs the set (checked once per feature by the standard
-    /// library).
+    /// True when this CPU runs the set (detected once per process).
+    #[inline]
     pub fn supported(self) -> bool {
+        self <= Isa::best()
+    }
+
+    /// The widest set this CPU runs.
+    #[inline]
+    pub fn best() -> Isa {
+        static BEST: OnceLock<Isa> = OnceLock::new();
+        *BEST.get_or_init(|| {
+            *Isa::ALL
+                .iter()
+                .rev()
+                .find(|i| i.detect())
+                .unwrap_or(&Isa::Sse)
+        })
+    }
+
+    /// Asks the CPU (through the standard library's feature detection).
+    fn detect(self) -> bool {
         match self {
             Isa::Sse => true,
             #[cfg(target_arch = "x86_64")]
@@ -76,7 +94,7 @@ impl Isa {
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512 => {
                 use std::arch::is_x86_feature_detected as has;
-                Isa::Avx2.supported()
+                Isa::Avx2.detect()
                     && has!("avx512f")
                     && has!("avx512bw")
                     && has!("avx512cd")
@@ -86,15 +104,6 @@ impl Isa {
             #[cfg(not(target_arch = "x86_64"))]
             _ => false,
         }
-    }
-
-    /// The widest set this CPU runs.
-    pub fn best() -> Isa {
-        *Isa::ALL
-            .iter()
-            .rev()
-            .find(|i| i.supported())
-            .unwrap_or(&Isa::Sse)
     }
 
     /// Every set this CPU runs, narrowest first: the paths the tests compare with the
@@ -194,6 +203,23 @@ macro_rules! dispatch {
             (Isa::Sse, 16) => W16::enter(#[inline(always)] || $recv.$m::<W16 $(, $g)*>($($a),*)),
             (Isa::Sse, 8) => W8::enter(#[inline(always)] || $recv.$m::<W8 $(, $g)*>($($a),*)),
             (Isa::Sse, _) => W4::enter(#[inline(always)] || $recv.$m::<W4 $(, $g)*>($($a),*)),
+        }
+    }};
+    ($lanes:expr; fn $f:ident :: < @ $(, $g:tt)* > ( $($a:expr),* $(,)? )) => {{
+        #[allow(unused_imports)]
+        use $crate::simd::{
+            Avx2x4, Avx2x8, Avx2x16, Avx512x4, Avx512x8, Avx512x16, Isa, Simd, W4, W8, W16,
+        };
+        match (Isa::in_use(), $lanes) {
+            (Isa::Avx512, 16) => Avx512x16::enter(#[inline(always)] || $f::<Avx512x16 $(, $g)*>($($a),*)),
+            (Isa::Avx512, 8) => Avx512x8::enter(#[inline(always)] || $f::<Avx512x8 $(, $g)*>($($a),*)),
+            (Isa::Avx512, _) => Avx512x4::enter(#[inline(always)] || $f::<Avx512x4 $(, $g)*>($($a),*)),
+            (Isa::Avx2, 16) => Avx2x16::enter(#[inline(always)] || $f::<Avx2x16 $(, $g)*>($($a),*)),
+            (Isa::Avx2, 8) => Avx2x8::enter(#[inline(always)] || $f::<Avx2x8 $(, $g)*>($($a),*)),
+            (Isa::Avx2, _) => Avx2x4::enter(#[inline(always)] || $f::<Avx2x4 $(, $g)*>($($a),*)),
+            (Isa::Sse, 16) => W16::enter(#[inline(always)] || $f::<W16 $(, $g)*>($($a),*)),
+            (Isa::Sse, 8) => W8::enter(#[inline(always)] || $f::<W8 $(, $g)*>($($a),*)),
+            (Isa::Sse, _) => W4::enter(#[inline(always)] || $f::<W4 $(, $g)*>($($a),*)),
         }
     }};
 }

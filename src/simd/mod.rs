@@ -152,27 +152,30 @@ pub trait Float:
     /// Vector `j` holds field `j` of each record, record `i` in lane `i` (the records
     /// of a packet's rays, [`crate::ray::Ray::as_records`]); lanes past `records.len()`
     /// are 0. A transpose, so no bit changes.
-    #[inline]
+    #[inline(always)]
     fn transpose8(records: &[[f32; 8]]) -> [Self; 8] {
         transpose8_lanes(records)
     }
     /// [`Float::transpose8`] of `lo` followed by `hi`, each half the width: a packet
     /// made of two runs of records that do not lie side by side (a 4x4 pixel block of
     /// an image set is two runs of 8 rays), without copying them together first.
-    #[inline]
+    #[inline(always)]
     fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
-        transpose8_lanes_from(|i| {
-            if i < lo.len() {
-                lo.get(i)
-            } else {
-                hi.get(i - lo.len())
-            }
-        })
+        transpose8_lanes_from(
+            #[inline(always)]
+            |i| {
+                if i < lo.len() {
+                    lo.get(i)
+                } else {
+                    hi.get(i - lo.len())
+                }
+            },
+        )
     }
     /// The reverse for four fields: record `i` of `out` gets lane `i` of each vector
     /// (a packet's hits, [`crate::ray::Hit::as_records_mut`]); writes `out.len()`
     /// records, at most one per lane. No bit changes.
-    #[inline]
+    #[inline(always)]
     fn transpose4_into(v: [Self; 4], out: &mut [[f32; 4]]) {
         transpose4_lanes(v, out)
     }
@@ -236,24 +239,44 @@ pub fn prefetch<T>(x: &T) {
 }
 
 /// [`Float::transpose8`] lane by lane, at any width.
-#[inline]
+#[inline(always)]
 pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {
-    transpose8_lanes_from(|i| records.get(i))
+    transpose8_lanes_from(
+        #[inline(always)]
+        |i| records.get(i),
+    )
 }
 
 /// Lane `i` of vector `j` is field `j` of `record(i)` (0 where `None`).
-#[inline]
+#[inline(always)]
 pub(crate) fn transpose8_lanes_from<'r, F: Float>(
     record: impl Fn(usize) -> Option<&'r [f32; 8]>,
 ) -> [F; 8] {
-    array_fn(|j| F::from_fn(|i| record(i).map_or(0.0, |r| r[j])))
+    array_fn(
+        #[inline(always)]
+        |j| {
+            F::from_fn(
+                #[inline(always)]
+                |i| {
+                    record(i).map_or(
+                        0.0,
+                        #[inline(always)]
+                        |r| r[j],
+                    )
+                },
+            )
+        },
+    )
 }
 
 /// [`Float::transpose4_into`] lane by lane, at any width.
-#[inline]
+#[inline(always)]
 pub fn transpose4_lanes<F: Float>(v: [F; 4], out: &mut [[f32; 4]]) {
     for (i, r) in out.iter_mut().enumerate() {
-        *r = v.amap(|x| x.lane(i));
+        *r = v.amap(
+            #[inline(always)]
+            |x| x.lane(i),
+        );
     }
 }
 
@@ -285,8 +308,14 @@ pub trait Uint:
     #[inline(always)]
     fn gather_pairs(table: &[u32], idx: &[u32; MAX_LANES]) -> (Self, Self) {
         (
-            Self::from_fn(|i| table[2 * idx[i] as usize]),
-            Self::from_fn(|i| table[2 * idx[i] as usize + 1]),
+            Self::from_fn(
+                #[inline(always)]
+                |i| table[2 * idx[i] as usize],
+            ),
+            Self::from_fn(
+                #[inline(always)]
+                |i| table[2 * idx[i] as usize + 1],
+            ),
         )
     }
 }
@@ -312,7 +341,7 @@ pub trait LaneMask:
     /// True when any lane is set.
     fn any(self) -> bool;
     /// True when no lane is set.
-    #[inline]
+    #[inline(always)]
     fn none(self) -> bool {
         !self.any()
     }
@@ -327,7 +356,7 @@ pub struct VBool<V>(V);
 /// quads row-major inside the block, each quad in RAYS.md's lane order ((0,0), (1,0),
 /// (0,1), (1,1)). So lanes 0..4 are always a 2x2 quad and lanes 0..8 a 4x2 block, as
 /// any 4 or 8 consecutive rays of an image set in RAYS.md's packet order.
-#[inline]
+#[inline(always)]
 pub fn block_pixel<W: Simd>(i: usize) -> (u32, u32) {
     let quads_per_row = W::SHAPE.0 as usize / 2;
     let (q, (dx, dy)) = (i / 4, quad_lane(i));
@@ -339,7 +368,7 @@ pub fn block_pixel<W: Simd>(i: usize) -> (u32, u32) {
 
 /// Pixel offset of lane `i % 4` inside its 2x2 quad, in RAYS.md's order: (0,0), (1,0),
 /// (0,1), (1,1). The one definition of the quad, for packets and ray files alike.
-#[inline]
+#[inline(always)]
 pub fn quad_lane(i: usize) -> (u32, u32) {
     let p = (i % 4) as u32;
     (p & 1, p >> 1)
@@ -387,20 +416,60 @@ impl<T: Copy, const N: usize> AMap<T, N> for [T; N] {
 /// [`Float::from_rows4`] lane by lane, at any width.
 #[inline(always)]
 pub(crate) fn rows4_lanes<'r, F: Float>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [F; 4] {
-    array_fn(|j| F::from_fn(|i| rows(i)[j]))
+    array_fn(
+        #[inline(always)]
+        |j| {
+            F::from_fn(
+                #[inline(always)]
+                |i| rows(i)[j],
+            )
+        },
+    )
 }
 
 /// The same lanes in another backend of the same width (a portable packet handed to
 /// the backend of the instruction set in use, and its answers back): no bit changes.
+/// Every vector type is its lanes in order and nothing else (`wide`'s, `__m256`,
+/// `__m512`, pairs of them), so two of one size are the same bytes: a copy, no
+/// shuffles (lane by lane it cost packet8 a fifth of its rate).
 #[inline(always)]
 pub(crate) fn recast<A: Float, B: Float>(x: A) -> B {
-    B::from_fn(|i| x.lane(i))
+    if size_of::<A>() == size_of::<B>() {
+        // SAFETY: both are the same f32 lanes in order (above), and every bit pattern
+        // is a valid f32.
+        unsafe { std::mem::transmute_copy(&x) }
+    } else {
+        B::from_fn(
+            #[inline(always)]
+            |i| x.lane(i),
+        )
+    }
 }
 
-/// [`recast`] of a mask.
+/// [`recast`] of u32 lanes.
+#[inline(always)]
+pub(crate) fn recast_u<A: Uint, B: Uint>(x: A) -> B {
+    if size_of::<A>() == size_of::<B>() {
+        // SAFETY: as in `recast`, for u32 lanes.
+        unsafe { std::mem::transmute_copy(&x) }
+    } else {
+        B::from_fn(
+            #[inline(always)]
+            |i| x.lane(i),
+        )
+    }
+}
+
+/// [`recast`] of a mask. Masks of one size are full lanes of set or clear bits (a
+/// `k` register mask is smaller, and goes through its bits).
 #[inline(always)]
 pub(crate) fn recast_mask<A: LaneMask, B: LaneMask>(m: A) -> B {
-    B::from_bits(m.bits())
+    if size_of::<A>() == size_of::<B>() {
+        // SAFETY: both are lanes of all-set or all-clear bits of one width, in order.
+        unsafe { std::mem::transmute_copy(&m) }
+    } else {
+        B::from_bits(m.bits())
+    }
 }
 
 /// The widest packet the instruction set in use runs in one register: 16 with

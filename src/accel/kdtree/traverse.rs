@@ -81,7 +81,7 @@ impl KdTree {
 
     /// Closest hit among the tree's primitives (planes excluded), folded into `best`;
     /// with `ANY_HIT`, returns true at the first hit in `(t_min, t_max)` instead.
-    #[inline]
+    #[inline(always)]
     pub(super) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
         let mut walk = Walk::new();
         if !self.start_walk(ray, &mut walk) {

@@ -302,6 +302,10 @@ impl KdTree {
     /// hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit anything
     /// in `(t_min, t_max)`, each lane leaving at its first hit, and stops once every
     /// lane of `active` has.
+    ///
+    /// Inlined into the packet kernel: out of line (an entry of its own, with the
+    /// packet passed through memory) packet8 on primary rays lost a tenth
+    /// (perf/isa.md).
     #[inline(always)]
     pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
         &self,
