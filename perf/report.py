@@ -603,7 +603,8 @@ def page(meta, parts):
         f"(about {plural(meta['minutes'], 'minute')}) and wrote it; run `python3 "
         "perf/report.py` again to bring it up to date rather than editing it. Each table "
         "names the command that reproduces it. The session notes of earlier rounds, with "
-        "the experiments behind the code, are history in [log/](log/).")
+        "the experiments behind the code, are history in [log/](log/); the kernels per "
+        "instruction set and a default build beside a native one: [isa.md](isa.md).")
     out.append("")
     out.append("## Machine and run")
     out.append("")

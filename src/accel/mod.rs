@@ -461,7 +461,7 @@ impl Prims {
 
     /// Tests the bounded primitive in `slot` for `ray.t_min < t < t_max`; the hit
     /// reports its id.
-    #[inline]
+    #[inline(always)]
     pub fn intersect_prim(&self, slot: u32, ray: &Ray, t_max: f32) -> Option<Hit> {
         // Spheres and boxes sit at their id; a triangle's record names its own.
         let prim = slot;
@@ -500,7 +500,7 @@ impl Prims {
     /// Folds the primitives in slots `prims` of a leaf into `best` in order: each is tested with
     /// `t_max = next_up(best.t)` (capped at the ray's) so an equal `t` reaches
     /// [`Hit::is_closer`] and a smaller id wins the tie.
-    #[inline]
+    #[inline(always)]
     pub fn intersect_leaf(&self, prims: &[u32], ray: &Ray, best: &mut Hit) {
         for &p in prims {
             let limit = best.t.next_up().min(ray.t_max);

@@ -11,7 +11,7 @@ use crate::ray::Ray;
 /// Intersection" (Ray Tracing Gems, ch. 7): the discriminant comes from the distance of
 /// the centre to the ray's line, not from `b * b - a * c`, which cancels catastrophically
 /// for far origins; the roots come from `q`, which avoids cancelling `-b + root`.
-#[inline]
+#[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
 pub fn intersect_sphere(s: &Sphere, ray: &Ray, t_max: f32) -> Option<f32> {
     let oc = ray.org - s.center;
@@ -36,7 +36,7 @@ pub fn intersect_sphere(s: &Sphere, ray: &Ray, t_max: f32) -> Option<f32> {
 }
 
 /// Nearest `t` in `(t_min, t_max)` where `ray` meets the box's surface (slab test).
-#[inline]
+#[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
 pub fn intersect_box(b: &Aabb, ray: &Ray, t_max: f32) -> Option<f32> {
     let inv = ray.dir.recip();
@@ -57,7 +57,7 @@ pub fn intersect_box(b: &Aabb, ray: &Ray, t_max: f32) -> Option<f32> {
 }
 
 /// `t` in `(t_min, t_max)` where `ray` meets the plane.
-#[inline]
+#[inline(always)]
 pub fn intersect_plane(p: &Plane, ray: &Ray, t_max: f32) -> Option<f32> {
     let t = (p.offset - p.normal.dot(ray.org)) / p.normal.dot(ray.dir);
     (t > ray.t_min && t < t_max).then_some(t)

@@ -71,13 +71,13 @@ pub const C2: f32 = 64.0;
 pub const T_SLACK: f32 = 1.0 / (1u32 << 17) as f32;
 
 /// `if a < b { a } else { b }`: the order of [`crate::simd::Float::min_lt`].
-#[inline]
+#[inline(always)]
 pub fn min_lt(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
 /// `if a > b { a } else { b }`: the order of [`crate::simd::Float::max_gt`].
-#[inline]
+#[inline(always)]
 pub fn max_gt(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }
 }
@@ -85,7 +85,7 @@ pub fn max_gt(a: f32, b: f32) -> f32 {
 /// The largest absolute component, `max_gt(max_gt(|x|, |y|), |z|)`: the order of
 /// [`crate::simd::max_abs`]. The triangle test's error bound grows with it (of the
 /// origin and of the direction), and so do the kd-tree's plane margins.
-#[inline]
+#[inline(always)]
 pub fn max_abs(v: Vec3) -> f32 {
     max_gt(max_gt(v.x.abs(), v.y.abs()), v.z.abs())
 }
@@ -167,7 +167,7 @@ impl TriAccel {
     }
 
     /// The record naming triangle `id` (at most [`MAX_ID`]).
-    #[inline]
+    #[inline(always)]
     pub fn with_id(self, id: u32) -> TriAccel {
         debug_assert!(id <= MAX_ID);
         TriAccel {
@@ -283,13 +283,13 @@ impl TriAccel {
     /// True for the record of a degenerate triangle (zero area, or corners too large
     /// for its plane to be finite): [`TriAccel::new`] zeroes its edge equations, so no
     /// ray hits it and the kd-tree leaves it out.
-    #[inline]
+    #[inline(always)]
     pub fn is_degenerate(&self) -> bool {
         self.b_nu == 0.0 && self.b_nv == 0.0 && self.c_nu == 0.0 && self.c_nv == 0.0
     }
 
     /// The record of `geometry`'s triangle `tri`, naming it.
-    #[inline]
+    #[inline(always)]
     pub fn of(geometry: &Geometry, tri: u32) -> TriAccel {
         let [a, b, c] = geometry.triangle(tri);
         TriAccel::new(a, b, c).with_id(tri)
@@ -299,7 +299,7 @@ impl TriAccel {
     /// `corners` are the triangle's corners, read only when the exact edge rule decides.
     ///
     /// Operation order is part of the contract: the packet test repeats it exactly.
-    #[inline]
+    #[inline(always)]
     #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "NaN must fail the test")]
     pub fn intersect(&self, ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
         let k = self.axis();

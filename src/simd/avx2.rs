@@ -10,7 +10,7 @@
 
 use super::{
     AMap, Float, Isa, LaneBits, LaneMask, Uint, VBool, array_fn, inl, transpose4_lanes,
-    transpose8_lanes, transpose8_lanes_from,
+    transpose8_halves_lanes, transpose8_lanes,
 };
 use std::arch::x86_64::*;
 use std::fmt;
@@ -538,16 +538,7 @@ impl Float for F32x16 {
     #[inline(always)]
     fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
         if lo.len() != 8 || hi.len() != 8 {
-            return transpose8_lanes_from(
-                #[inline(always)]
-                |i| {
-                    if i < lo.len() {
-                        lo.get(i)
-                    } else {
-                        hi.get(i - lo.len())
-                    }
-                },
-            );
+            return transpose8_halves_lanes(lo, hi);
         }
         let (a, b) = (transpose8_x8(lo), transpose8_x8(hi));
         array_fn(

@@ -274,16 +274,7 @@ impl Float for F32x16 {
     #[inline(always)]
     fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
         if lo.len() != 8 || hi.len() != 8 {
-            return super::transpose8_lanes_from(
-                #[inline(always)]
-                |i| {
-                    if i < lo.len() {
-                        lo.get(i)
-                    } else {
-                        hi.get(i - lo.len())
-                    }
-                },
-            );
+            return super::transpose8_halves_lanes(lo, hi);
         }
         let (lo, hi) = (lo.as_ptr().cast::<f32>(), hi.as_ptr().cast::<f32>());
         // SAFETY: each run holds 8 * 8 f32, so each load reads 16 f32 (two records)

@@ -161,16 +161,7 @@ pub trait Float:
     /// an image set is two runs of 8 rays), without copying them together first.
     #[inline(always)]
     fn transpose8_halves(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [Self; 8] {
-        transpose8_lanes_from(
-            #[inline(always)]
-            |i| {
-                if i < lo.len() {
-                    lo.get(i)
-                } else {
-                    hi.get(i - lo.len())
-                }
-            },
-        )
+        transpose8_halves_lanes(lo, hi)
     }
     /// The reverse for four fields: record `i` of `out` gets lane `i` of each vector
     /// (a packet's hits, [`crate::ray::Hit::as_records_mut`]); writes `out.len()`
@@ -244,6 +235,21 @@ pub fn transpose8_lanes<F: Float>(records: &[[f32; 8]]) -> [F; 8] {
     transpose8_lanes_from(
         #[inline(always)]
         |i| records.get(i),
+    )
+}
+
+/// [`Float::transpose8_halves`] lane by lane, at any width.
+#[inline(always)]
+pub(crate) fn transpose8_halves_lanes<F: Float>(lo: &[[f32; 8]], hi: &[[f32; 8]]) -> [F; 8] {
+    transpose8_lanes_from(
+        #[inline(always)]
+        |i| {
+            if i < lo.len() {
+                lo.get(i)
+            } else {
+                hi.get(i - lo.len())
+            }
+        },
     )
 }
 

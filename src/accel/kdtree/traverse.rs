@@ -67,14 +67,14 @@ impl KdTree {
     /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
     /// cut to `[t_min, t_max]`; `None` when the ray misses the box (or has NaNs).
     /// `inv_dir` is `1 / dir` (a true division, as the packet path computes it).
-    #[inline]
+    #[inline(always)]
     pub fn clip_ray(&self, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
         clip_to_box(&self.bounds, ray, inv_dir)
     }
 
     /// `box_coord_max` of the tree's box on every axis: no split lies farther from the
     /// origin, so it stands in for the split position in the plane margin.
-    #[inline]
+    #[inline(always)]
     pub(super) fn coord_max(&self) -> Vec3 {
         Vec3::splat(box_coord_max(&self.bounds))
     }
@@ -96,7 +96,7 @@ impl KdTree {
 
     /// Sets `walk` up at the root for `ray`; false when the ray misses the tree's box
     /// (or is not usable), and then there is nothing to walk.
-    #[inline]
+    #[inline(always)]
     pub(super) fn start_walk(&self, ray: &Ray, walk: &mut Walk) -> bool {
         let inv_dir = Vec3::ONE / ray.dir;
         let Some((t_near, t_far)) = self.clip_ray(ray, inv_dir) else {
@@ -231,12 +231,13 @@ impl KdTree {
         bump(|c| c.leaf_visits += 1);
         if count != 0 {
             if ANY_HIT {
-                let hit = |&p: &u32| {
+                // A loop, not `Iterator::any`, which LLVM may keep out of line (see
+                // `crate::simd::inl`).
+                for &p in prims {
                     bump(|c| c.prim_tests += 1);
-                    self.prims.intersect_prim(p, ray, ray.t_max).is_some()
-                };
-                if prims.iter().any(hit) {
-                    return Some(true);
+                    if self.prims.intersect_prim(p, ray, ray.t_max).is_some() {
+                        return Some(true);
+                    }
                 }
             } else {
                 bump(|c| c.prim_tests += count as u64);
@@ -280,7 +281,7 @@ pub(super) struct Stack<T: Copy> {
 }
 
 impl<T: Copy> Stack<T> {
-    #[inline]
+    #[inline(always)]
     pub(super) fn new() -> Stack<T> {
         Stack {
             items: [const { MaybeUninit::uninit() }; STACK_SIZE],
@@ -289,14 +290,14 @@ impl<T: Copy> Stack<T> {
     }
 
     /// Panics when full (the tree's depth bounds the pushes, see [`STACK_SIZE`]).
-    #[inline]
+    #[inline(always)]
     pub(super) fn push(&mut self, item: T) {
         self.items[self.len].write(item);
         self.len += 1;
     }
 
     /// Drops every entry.
-    #[inline]
+    #[inline(always)]
     pub(super) fn clear(&mut self) {
         self.len = 0;
     }
@@ -311,13 +312,13 @@ impl<T: Copy> Stack<T> {
     }
 
     /// Becomes a copy of `other` (its entries only, not the free slots).
-    #[inline]
+    #[inline(always)]
     pub(super) fn copy_from(&mut self, other: &Stack<T>) {
         self.items[..other.len].copy_from_slice(&other.items[..other.len]);
         self.len = other.len;
     }
 
-    #[inline]
+    #[inline(always)]
     pub(super) fn pop(&mut self) -> Option<T> {
         self.len = self.len.checked_sub(1)?;
         // SAFETY: `push` is the only writer and raises `len` only after writing slot
@@ -356,7 +357,7 @@ impl Walk {
     }
 
     /// An idle walk, for [`KdTree::start_walk`] to set up.
-    #[inline]
+    #[inline(always)]
     pub(super) fn new() -> Walk {
         Walk {
             axes: RayAxes {
@@ -396,7 +397,7 @@ pub(super) struct RayAxes {
 }
 
 impl RayAxes {
-    #[inline]
+    #[inline(always)]
     fn new(ray: &Ray, inv_dir: Vec3, coord_max: Vec3) -> RayAxes {
         let four = |v: Vec3| [v.x, v.y, v.z, 0.0];
         let d = four(ray.dir);
@@ -417,7 +418,7 @@ impl RayAxes {
 /// A ray with a NaN or infinite origin or direction component, a zero direction, or
 /// `!(t_min <= t_max)` gets `None`: it misses every primitive anyway (each test fails on
 /// its NaN or infinite `t`), and must not walk the whole tree to find that out.
-#[inline]
+#[inline(always)]
 pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
     if !ray.is_usable() {
         return None;
@@ -456,7 +457,7 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
 /// origin's (a sliver long along x can land a grazing ray's hit off in y by that much),
 /// so the box and plane margins are scaled by it, not by the coordinates of their own
 /// axis alone.
-#[inline]
+#[inline(always)]
 pub(super) fn box_coord_max(b: &Aabb) -> f32 {
     max_abs(b.min).max(max_abs(b.max))
 }
