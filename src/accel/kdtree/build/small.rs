@@ -18,6 +18,7 @@
 
 use super::{Builder, Out, PlaneCost, child_cells, cut_bounds, from_order_bits, order_bits};
 use crate::geom::Aabb;
+use crate::simd::{AMap, Simd, dispatch};
 
 /// Most references a small node holds.
 pub(super) const SMALL: usize = 48;
@@ -118,7 +119,7 @@ impl SmallNode {
     /// candidates (vector compares), then every candidate is priced in a second loop:
     /// the same counts and costs as pricing one candidate at a time. Which side takes
     /// the planar references is left to [`SmallNode::planar_left`], for the winner only.
-    #[inline]
+    #[inline(always)]
     fn best_on_axes(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
         match (2 * self.len).div_ceil(LANES) {
             1 => self.best_on_axes_in::<1>(pricing),
@@ -132,15 +133,18 @@ impl SmallNode {
 
     /// [`SmallNode::best_on_axes`] for a node that fills `C` chunks: one choice of `C`
     /// for the three axes.
-    #[inline]
+    #[inline(always)]
     fn best_on_axes_in<const C: usize>(&self, pricing: &[PlaneCost; 3]) -> [(f32, f32); 3] {
-        [0, 1, 2].map(|axis| self.best_in_chunks::<C>(axis, &pricing[axis]))
+        [0, 1, 2].amap(
+            #[inline(always)]
+            |axis| self.best_in_chunks::<C>(axis, &pricing[axis]),
+        )
     }
 
     /// [`SmallNode::best_on_axes`] on `axis` over the first `C` chunks of candidates, the counts
     /// in arrays of just those chunks (so a node of few references clears and prices
     /// only what it fills).
-    #[inline]
+    #[inline(always)]
     fn best_in_chunks<const C: usize>(&self, axis: usize, pricing: &PlaneCost) -> (f32, f32) {
         let cand = &self.lim[axis];
         let mut left: Counts<C> = [[0.0; LANES]; C];
@@ -207,7 +211,7 @@ type Counts<const C: usize> = [[f32; LANES]; C];
 /// per candidate, the references starting left of it, ending right of it and lying in
 /// it, as floats (exact; the pricing then needs no conversions). `C` is a constant so the
 /// chunks and their counts stay in vector registers while the references go by.
-#[inline]
+#[inline(always)]
 fn count<const C: usize>(
     cand: &[f32; CANDIDATES],
     len: usize,
@@ -353,8 +357,19 @@ impl Builder<'_> {
     }
 
     /// The cheapest plane of a small node if it beats a leaf (see the module doc); a
-    /// later axis must be strictly cheaper to win.
+    /// later axis must be strictly cheaper to win. The candidate counts are vector
+    /// loops: they run compiled for the instruction set in use ([`dispatch`]).
     fn small_plane(&self, cell: &Aabb, node: &SmallNode) -> Option<Plane> {
+        dispatch!(4; self.small_plane_as::<@>(cell, node))
+    }
+
+    /// [`Builder::small_plane`] inside the entry of backend `B`'s instruction set.
+    #[inline(always)]
+    #[allow(
+        clippy::extra_unused_type_parameters,
+        reason = "B picks the entry (the instruction set) the body is compiled for"
+    )]
+    fn small_plane_as<B: Simd>(&self, cell: &Aabb, node: &SmallNode) -> Option<Plane> {
         let mut best = None;
         let mut best_cost = self.params.intersection_cost * node.len as f32;
         let pricing = [
