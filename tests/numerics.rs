@@ -27,61 +27,47 @@ fn assert_agree(g: &Geometry, tree: &KdTree, rays: &[Ray], what: &str) -> usize 
     rays.par_chunks(8)
         .enumerate()
         .map(|(c, chunk)| {
-            let mut hits = 0;
             let packet = RayPacket::<W8>::from_rays(chunk);
-            for isa in common::isas() {
-                let (packet_hits, packet_occluded) = isa
-                    .scope(|| {
-                        (
-                            tree.intersect_packet(&packet),
-                            tree.occluded_packet(&packet),
-                        )
-                    })
-                    .expect("a supported instruction set");
-                for (i, ray) in chunk.iter().enumerate() {
+            // The packet answers under each instruction set the CPU runs.
+            let by_isa: Vec<_> = common::isas()
+                .into_iter()
+                .map(|isa| {
+                    let answers = isa
+                        .scope(|| {
+                            (
+                                tree.intersect_packet(&packet),
+                                tree.occluded_packet(&packet),
+                            )
+                        })
+                        .expect("a supported instruction set");
+                    (isa, answers)
+                })
+                .collect();
+            let mut hits = 0;
+            for (i, ray) in chunk.iter().enumerate() {
+                let want = brute.intersect(ray);
+                let occluded = brute.occluded(ray);
+                assert_eq!(
+                    hit_bits(tree.intersect(ray)),
+                    hit_bits(want),
+                    "{what}: ray {} {ray:?} kd-tree vs brute",
+                    c * 8 + i
+                );
+                assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
+                for (isa, (packet_hits, packet_occluded)) in &by_isa {
                     let lane = packet_hits.lane(i);
-                    let want = hit_bits(brute.intersect(ray));
                     assert_eq!(
                         hit_bits(lane.is_hit().then_some(lane)),
-                        want,
+                        hit_bits(want),
                         "{what}: ray {} {ray:?} packet ({isa}) vs brute",
                         c * 8 + i
                     );
                     assert_eq!(
                         packet_occluded & (1 << i) != 0,
-                        brute.occluded(ray),
+                        occluded,
                         "{what}: ray {ray:?} packet ({isa}) occluded"
                     );
                 }
-            }
-            let (packet_hits, packet_occluded) = (
-                tree.intersect_packet(&packet),
-                tree.occluded_packet(&packet),
-            );
-            for (i, ray) in chunk.iter().enumerate() {
-                let want = brute.intersect(ray);
-                let got = tree.intersect(ray);
-                let lane = packet_hits.lane(i);
-                let from_packet = lane.is_hit().then_some(lane);
-                assert_eq!(
-                    hit_bits(got),
-                    hit_bits(want),
-                    "{what}: ray {} {ray:?} kd-tree vs brute",
-                    c * 8 + i
-                );
-                assert_eq!(
-                    hit_bits(from_packet),
-                    hit_bits(want),
-                    "{what}: ray {} {ray:?} packet vs brute",
-                    c * 8 + i
-                );
-                let occluded = brute.occluded(ray);
-                assert_eq!(tree.occluded(ray), occluded, "{what}: ray {ray:?} occluded");
-                assert_eq!(
-                    packet_occluded & (1 << i) != 0,
-                    occluded,
-                    "{what}: ray {ray:?} packet occluded"
-                );
                 hits += want.is_some() as usize;
             }
             hits

@@ -433,6 +433,24 @@ pub(crate) fn rows4_lanes<'r, F: Float>(rows: impl Fn(usize) -> &'r [f32; 4]) ->
     )
 }
 
+/// `x`'s bytes as a `B` when the two have one size, else `None`.
+///
+/// # Safety
+/// `A` and `B` must be lane types of one lane count (vectors or masks), each nothing
+/// but its lanes in order, so that equal sizes mean equal layouts and every bit
+/// pattern of `A` is a valid `B`.
+#[inline(always)]
+unsafe fn same_bytes<A, B>(x: &A) -> Option<B> {
+    // (An `if`, not `bool::then`: std's combinators may stay out of line, compiled for
+    // the baseline; see [`inl`].)
+    if size_of::<A>() == size_of::<B>() {
+        // SAFETY: the caller's contract; the size check keeps the copy in bounds.
+        Some(unsafe { std::mem::transmute_copy(x) })
+    } else {
+        None
+    }
+}
+
 /// The same lanes in another backend of the same width (a portable packet handed to
 /// the backend of the instruction set in use, and its answers back): no bit changes.
 /// Every vector type is its lanes in order and nothing else (`wide`'s, `__m256`,
@@ -440,29 +458,26 @@ pub(crate) fn rows4_lanes<'r, F: Float>(rows: impl Fn(usize) -> &'r [f32; 4]) ->
 /// shuffles (lane by lane it cost packet8 a fifth of its rate).
 #[inline(always)]
 pub(crate) fn recast<A: Float, B: Float>(x: A) -> B {
-    if size_of::<A>() == size_of::<B>() {
-        // SAFETY: both are the same f32 lanes in order (above), and every bit pattern
-        // is a valid f32.
-        unsafe { std::mem::transmute_copy(&x) }
-    } else {
-        B::from_fn(
+    // SAFETY: f32 lanes in order (above); every bit pattern is a valid f32.
+    match unsafe { same_bytes(&x) } {
+        Some(y) => y,
+        None => B::from_fn(
             #[inline(always)]
             |i| x.lane(i),
-        )
+        ),
     }
 }
 
 /// [`recast`] of u32 lanes.
 #[inline(always)]
 pub(crate) fn recast_u<A: Uint, B: Uint>(x: A) -> B {
-    if size_of::<A>() == size_of::<B>() {
-        // SAFETY: as in `recast`, for u32 lanes.
-        unsafe { std::mem::transmute_copy(&x) }
-    } else {
-        B::from_fn(
+    // SAFETY: as in `recast`, for u32 lanes.
+    match unsafe { same_bytes(&x) } {
+        Some(y) => y,
+        None => B::from_fn(
             #[inline(always)]
             |i| x.lane(i),
-        )
+        ),
     }
 }
 
@@ -470,11 +485,10 @@ pub(crate) fn recast_u<A: Uint, B: Uint>(x: A) -> B {
 /// `k` register mask is smaller, and goes through its bits).
 #[inline(always)]
 pub(crate) fn recast_mask<A: LaneMask, B: LaneMask>(m: A) -> B {
-    if size_of::<A>() == size_of::<B>() {
-        // SAFETY: both are lanes of all-set or all-clear bits of one width, in order.
-        unsafe { std::mem::transmute_copy(&m) }
-    } else {
-        B::from_bits(m.bits())
+    // SAFETY: masks of one size are lanes of all-set or all-clear bits, in order.
+    match unsafe { same_bytes(&m) } {
+        Some(y) => y,
+        None => B::from_bits(m.bits()),
     }
 }
 
