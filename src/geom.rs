@@ -133,6 +133,42 @@ pub struct Geometry {
     pub planes: Vec<Plane>,
 }
 
+/// Why vertex and index arrays handed to [`Geometry::from_arrays`] make no mesh; each
+/// names the first bad entry.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// No triangles, or no vertices.
+    #[error("the mesh is empty: {vertices} vertices, {triangles} triangles")]
+    Empty {
+        /// How many vertices were given.
+        vertices: usize,
+        /// How many triangles were given.
+        triangles: usize,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("vertex {vertex}: {axis} is {value}, not a finite number")]
+    NotFinite {
+        /// The vertex's index.
+        vertex: usize,
+        /// `x`, `y` or `z`.
+        axis: char,
+        /// The value found.
+        value: f32,
+    },
+    /// A triangle names a vertex that is not there.
+    #[error("triangle {triangle}: corner {corner} is vertex {index}, outside 0..{vertices}")]
+    BadIndex {
+        /// The triangle's index.
+        triangle: usize,
+        /// 0, 1 or 2.
+        corner: usize,
+        /// The index found (negative ones included).
+        index: i128,
+        /// How many vertices there are.
+        vertices: usize,
+    },
+}
+
 /// Bounds of the bounded primitives in f64 and their diagonal (planes excluded; all zero
 /// when there are none): the scale the ray sets and the default views are made at.
 pub fn scene_box(geometry: &Geometry) -> (DVec3, DVec3, f64) {
@@ -145,6 +181,58 @@ pub fn scene_box(geometry: &Geometry) -> (DVec3, DVec3, f64) {
 }
 
 impl Geometry {
+    /// A triangle mesh from flat arrays, as a program that made its own mesh holds them:
+    /// `vertices[i]` is vertex `i`, `triangles[j]` the three vertex indices of triangle
+    /// `j` (its primitive id). Every coordinate must be finite and every index in range;
+    /// the error names the first that is not.
+    pub fn from_arrays<I>(
+        vertices: &[[f32; 3]],
+        triangles: &[[I; 3]],
+    ) -> Result<Geometry, MeshError>
+    where
+        I: Copy + Into<i128>,
+    {
+        if vertices.is_empty() || triangles.is_empty() {
+            return Err(MeshError::Empty {
+                vertices: vertices.len(),
+                triangles: triangles.len(),
+            });
+        }
+        for (vertex, v) in vertices.iter().enumerate() {
+            if let Some(k) = (0..3).find(|&k| !v[k].is_finite()) {
+                return Err(MeshError::NotFinite {
+                    vertex,
+                    axis: ['x', 'y', 'z'][k],
+                    value: v[k],
+                });
+            }
+        }
+        // Indices past u32 cannot be stored: the vertex count bounds them first.
+        let n = vertices.len().min(u32::MAX as usize);
+        let mut tris = Vec::with_capacity(triangles.len());
+        for (triangle, t) in triangles.iter().enumerate() {
+            let mut corners = [0u32; 3];
+            for corner in 0..3 {
+                let index: i128 = t[corner].into();
+                if !(0..n as i128).contains(&index) {
+                    return Err(MeshError::BadIndex {
+                        triangle,
+                        corner,
+                        index,
+                        vertices: vertices.len(),
+                    });
+                }
+                corners[corner] = index as u32;
+            }
+            tris.push(corners);
+        }
+        Ok(Geometry {
+            vertices: vertices.iter().map(|&v| Vec3::from_array(v)).collect(),
+            triangles: tris,
+            ..Geometry::default()
+        })
+    }
+
     /// Primitives that go into an accelerator's tree: triangles, spheres and boxes.
     pub fn bounded_count(&self) -> u32 {
         (self.triangles.len() + self.spheres.len() + self.boxes.len()) as u32
@@ -268,5 +356,37 @@ mod tests {
         assert_eq!(g.prim_ref(g.plane_prim(0)), PrimRef::Plane(0));
         assert_eq!(g.bounds(), Aabb::new(Vec3::splat(-1.0), Vec3::ONE));
         assert_eq!(g.geometric_normal(3, Vec3::new(0.5, 1.0, 0.5)), Vec3::Y);
+    }
+
+    #[test]
+    fn meshes_from_arrays_are_checked_entry_by_entry() {
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let g = Geometry::from_arrays(&v, &[[0i64, 1, 2]]).unwrap();
+        assert_eq!(g.triangle(0), [Vec3::ZERO, Vec3::X, Vec3::Y]);
+        assert_eq!(g.prim_count(), 1);
+        let empty: [[i64; 3]; 0] = [];
+        assert!(matches!(
+            Geometry::from_arrays(&v, &empty),
+            Err(MeshError::Empty {
+                vertices: 3,
+                triangles: 0
+            })
+        ));
+        let mut nan = v;
+        nan[2][1] = f32::NAN;
+        let e = Geometry::from_arrays(&nan, &[[0u32, 1, 2]]).unwrap_err();
+        assert_eq!(e.to_string(), "vertex 2: y is NaN, not a finite number");
+        for (bad, index) in [([0i64, -1, 2], -1i128), ([0, 1, 3], 3)] {
+            let e = Geometry::from_arrays(&v, &[[0, 1, 2], bad]).unwrap_err();
+            assert_eq!(
+                e,
+                MeshError::BadIndex {
+                    triangle: 1,
+                    corner: if index < 0 { 1 } else { 2 },
+                    index,
+                    vertices: 3
+                }
+            );
+        }
     }
 }

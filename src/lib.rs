@@ -81,6 +81,7 @@ pub mod rng;
 pub mod scene;
 #[warn(missing_docs)]
 pub mod simd;
+pub mod studio;
 
 /// The vector library of raypack's API ([`prelude::Vec3`] is its `Vec3`).
 pub use glam;
@@ -95,4 +96,6 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
         || e.downcast_ref::<rayset::RaySetError>()
             .is_some_and(rayset::RaySetError::is_input)
         || e.is::<scene::catalog::BenchSceneError>()
+        || e.is::<geom::MeshError>()
+        || e.is::<studio::StudioError>()
 }

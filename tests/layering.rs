@@ -28,7 +28,9 @@ const LAYERS: &[(&str, u32)] = &[
     ("render", 4),
     ("rayset", 4),
     ("prelude", 5),
-    ("cli", 5),
+    // A render set up as the command line and the Python package set it up.
+    ("studio", 5),
+    ("cli", 6),
 ];
 
 /// Imports that break the rules today, `(from, to)` with paths relative to src/; the

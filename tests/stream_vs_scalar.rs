@@ -445,3 +445,78 @@ fn shared_scenes_standard_sets() {
         check_standard_sets(&g, &camera, 160, 128, name);
     }
 }
+
+/// The camera rays of any image size in row-major order are the primary set's rays of
+/// the same pixels, and `trace_image` (padded to whole tiles, traced as an image set in
+/// every mode) gives each pixel the scalar hit of its ray.
+#[test]
+fn camera_rays_and_trace_image_of_any_size() {
+    use raypack::accel::Mode;
+    use raypack::rayset::standard::{camera_rays, primary};
+    use raypack::rayset::{pixel_packet_index, trace::trace_image};
+    let g = mixed_primitives();
+    let view = View::from(&looking_at(&g, Vec3::new(0.3, 0.5, 1.2)));
+    let tree = KdTree::build(&g);
+
+    let set = primary(&view, 48, 32).unwrap();
+    let rays = camera_rays(&view, 48, 32).unwrap();
+    for (i, r) in rays.iter().enumerate() {
+        let (x, y) = ((i % 48) as u32, (i / 48) as u32);
+        assert_eq!(
+            Ray::as_records(&[*r]),
+            Ray::as_records(&[set.rays[pixel_packet_index(x, y, 48)]])
+        );
+    }
+    for (w, h) in [(1, 1), (37, 23), (48, 32), (17, 40)] {
+        let rays = camera_rays(&view, w, h).unwrap();
+        assert_eq!(rays.len(), (w * h) as usize);
+        let want: Vec<_> = rays.iter().map(|r| hit_bits(tree.intersect(r))).collect();
+        common::each_isa(|| {
+            for mode in Mode::ALL {
+                let got = trace_image(&tree, &view, w, h, mode).unwrap();
+                let got: Vec<_> = got
+                    .iter()
+                    .map(|h| hit_bits(h.is_hit().then_some(*h)))
+                    .collect();
+                assert!(
+                    got == want,
+                    "{w}x{h} {mode}: trace_image differs from the scalar hits"
+                );
+            }
+        });
+    }
+    assert!(camera_rays(&view, 0, 5).is_err());
+    assert!(trace_image(&tree, &view, 5, 0, Mode::Tile64).is_err());
+}
+
+/// `occluded_into` answers in every mode as the scalar `occluded`, and `auto_mode`
+/// takes packets for camera rays and streams for rays in random order.
+#[test]
+fn occluded_into_every_mode_and_auto_mode() {
+    use raypack::accel::Mode;
+    use raypack::rayset::standard::camera_rays;
+    use raypack::rayset::trace::{Order, auto_mode, occluded_into};
+    let g = mixed_primitives();
+    let tree = KdTree::build(&g);
+    let b = g.bounds();
+    let mut rays = random_rays(b.min, b.max, 3000, 77);
+    for (i, r) in rays.iter_mut().enumerate() {
+        r.t_max = (i % 7) as f32 * 0.2;
+    }
+    let want: Vec<bool> = rays.iter().map(|r| tree.occluded(r)).collect();
+    assert!(want.iter().any(|&o| o) && !want.iter().all(|&o| o));
+    common::each_isa(|| {
+        for mode in Mode::ALL {
+            let mut got = vec![false; rays.len()];
+            occluded_into(&tree, &rays, Order::Any, mode, &mut got);
+            assert!(
+                got == want,
+                "{mode}: occluded_into differs from the scalar answers"
+            );
+        }
+    });
+    let view = View::from(&looking_at(&g, Vec3::new(0.3, 0.5, 1.2)));
+    let camera = camera_rays(&view, 64, 64).unwrap();
+    assert_eq!(auto_mode(&camera, b.diagonal()), Mode::native_packet());
+    assert_eq!(auto_mode(&rays, b.diagonal()), Mode::Stream);
+}

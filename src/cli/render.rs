@@ -2,8 +2,8 @@
 //!
 //! SCENE is a TOML scene file (see scenes/README.md), an OBJ mesh, or the name of a
 //! benchmark scene in ../shared/scenes/cameras.toml (`sponza`, `bunny`, `conference`,
-//! `cornell_box`). A mesh is shaded with its MTL colours and the light rig of
-//! [`light_rig`]; its camera is the one cameras.toml gives it, or one that frames its
+//! `cornell_box`). A mesh is shaded with its MTL colours and lit as
+//! [`raypack::studio::light_mesh`] lights it; its camera is the one cameras.toml gives it, or one that frames its
 //! bounds. `--eye`, `--target`, `--up` and `--vfov` override the camera of any scene.
 //!
 //! The output is checked before any work (its folder must exist and be writable), the
@@ -30,10 +30,8 @@ use raypack::render::gi::{GiCounts, GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
 use raypack::render::{Film, RayCounts, render, tiles};
-use raypack::scene::View;
-use raypack::scene::catalog::{self, SceneArg};
-use raypack::scene::light::emitter_lights;
-use raypack::scene::{AntiAlias, Camera, Light, Scene, Warning};
+use raypack::scene::{AntiAlias, Camera, Scene};
+use raypack::studio::{self, MAX_GI_SPP, Source, Staged};
 use serde::Serialize;
 use std::collections::{BTreeMap, BinaryHeap};
 use std::io::IsTerminal;
@@ -178,74 +176,6 @@ impl CameraArgs {
     }
 }
 
-/// Where a scene came from: a scene file brings its own lights, a mesh gets the rig.
-enum Source {
-    File,
-    Mesh,
-}
-
-/// Loads SCENE (see the module docs): the argument is read as every command reads it
-/// ([`catalog::resolve`]).
-fn load(arg: &str) -> anyhow::Result<(Scene, Vec<Warning>, Source)> {
-    match catalog::resolve(arg)? {
-        SceneArg::Toml(path) => {
-            let (scene, warnings) = raypack::scene::file::load_with_warnings(&path)?;
-            Ok((scene, warnings, Source::File))
-        }
-        SceneArg::Obj { path, view } => {
-            let camera = view.as_ref().map(Camera::from).unwrap_or_default();
-            let (mut scene, warnings) = Scene::from_obj(&path, camera)?;
-            if view.is_none() {
-                scene.camera = Camera::from(&catalog::overview(&scene.geometry));
-            }
-            Ok((scene, warnings, Source::Mesh))
-        }
-        SceneArg::Spd(_) => Err(BadInput(format!(
-            "{arg}: render takes a scene file, an OBJ mesh or a scene name; spd: scenes are for bench, trace, rays and info"
-        ))
-        .into()),
-    }
-}
-
-/// The most samples per pixel of the path and photon integrators: 2^16, far past a
-/// converged image, and a bound on what a typing slip can start.
-pub const MAX_GI_SPP: u32 = 1 << 16;
-
-/// Shadow rays per shading point that the lights of a mesh's emitters share
-/// ([`emitter_lights`]).
-pub const EMITTER_SAMPLES: u32 = 16;
-/// The most emissive triangles that become Whitted lights: each costs a shadow ray per
-/// shading point at least.
-pub const MAX_EMITTER_LIGHTS: usize = 64;
-
-/// Brightness of the key light of [`light_rig`].
-pub const KEY_LIGHT: f32 = 0.6;
-/// Brightness of the fill light of [`light_rig`].
-pub const FILL_LIGHT: f32 = 0.2;
-/// Ambient term of a mesh scene, so that what neither light reaches is not pure black.
-pub const MESH_AMBIENT: f32 = 0.05;
-
-/// The lights of a mesh scene that has no emitters: a white key light where
-/// `raypack bench` puts its shadow rays' light (halfway between the eye and whatever is
-/// above it, RAYS.md and `rayset::standard::default_light`), so the image shows the
-/// shadows the benchmark traces, and a dim fill light at the eye, so that surfaces in
-/// the key light's shadow still show their shape.
-pub fn light_rig(scene: &Scene, accel: &KdTree) -> anyhow::Result<Vec<Light>> {
-    let view = View::from(&scene.camera);
-    let (key, _) = raypack::rayset::standard::default_light(accel, &scene.geometry, &view)
-        .context("placing the key light")?;
-    Ok(vec![
-        Light::Point {
-            position: key.as_vec3(),
-            color: Vec3::splat(KEY_LIGHT),
-        },
-        Light::Point {
-            position: scene.camera.eye,
-            color: Vec3::splat(FILL_LIGHT),
-        },
-    ])
-}
-
 /// What `--json` writes.
 #[derive(Serialize, Debug)]
 struct Report<'a> {
@@ -330,12 +260,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     super::check_outputs([("-o", Some(&args.output)), ("--json", args.json.as_ref())])?;
 
-    let (mut scene, warnings, source) = load(&args.scene)?;
-    super::warn(&warnings);
-    args.camera.apply(&mut scene.camera)?;
+    let mut staged = studio::load(&args.scene)?;
+    super::warn(&staged.warnings);
+    args.camera.apply(&mut staged.scene.camera)?;
     if args.integrator != IntegratorArg::Whitted {
-        return run_gi(scene, source, &args, &options);
+        return run_gi(staged, &args, &options);
     }
+    let Staged {
+        mut scene, source, ..
+    } = staged;
     apply_overrides(&mut scene, &args, args.spp)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
@@ -343,21 +276,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let accel = pool.install(|| KdTree::build(&scene.geometry));
     let build_seconds = start.elapsed().as_secs_f64();
     if let Source::Mesh = source {
-        let emitters = emitter_lights(&scene, EMITTER_SAMPLES, MAX_EMITTER_LIGHTS);
-        if emitters.left_out > 0 {
+        let left_out = studio::light_mesh(&mut scene, &accel).context("placing the key light")?;
+        if left_out > 0 {
             eprintln!(
                 "raypack: warning: {}: lit by its {} brightest emissive triangles; the {} dimmer ones are left out of the Whitted tracer's lights (--integrator path takes them all)",
                 args.scene,
-                emitters.lights.len(),
-                emitters.left_out
+                scene.lights.len(),
+                left_out
             );
         }
-        scene.lights = if emitters.lights.is_empty() {
-            light_rig(&scene, &accel)?
-        } else {
-            emitters.lights
-        };
-        scene.settings.ambient = MESH_AMBIENT;
     }
     if scene.lights.is_empty() && scene.settings.ambient == 0.0 {
         eprintln!(
@@ -439,12 +366,7 @@ fn routing(integrator: IntegratorArg, mode: Mode, c: &GiCounts) -> String {
 
 /// Renders with the path tracer or the photon mapper: any `--spp`, the sky, and a
 /// summary with rays by kind, rays/s and, for photons, the map's build and lookup times.
-fn run_gi(
-    mut scene: Scene,
-    source: Source,
-    args: &Args,
-    options: &WriteOptions,
-) -> anyhow::Result<()> {
+fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result<()> {
     let spp = args.spp.unwrap_or(16);
     if !(1..=MAX_GI_SPP).contains(&spp) {
         return Err(BadInput(format!(
@@ -452,21 +374,21 @@ fn run_gi(
         ))
         .into());
     }
-    let emits = (0..scene.geometry.prim_count()).any(|p| scene.material(p).emission != Vec3::ZERO);
-    let environment = match args.sky.as_deref() {
-        // A bare mesh has no light of its own: a uniform white sky shows its shape.
-        None if matches!(source, Source::Mesh) && !emits => {
-            eprintln!(
-                "raypack: note: {} has no emissive material; it is lit by a uniform sky of radiance 1 (--sky R,G,B sets another)",
-                args.scene
-            );
-            Vec3::ONE
-        }
-        None => scene.settings.background,
-        Some([v]) => Vec3::splat(*v),
-        Some([r, g, b]) => Vec3::new(*r, *g, *b),
+    let sky = match args.sky.as_deref() {
+        None => None,
+        Some([v]) => Some(Vec3::splat(*v)),
+        Some([r, g, b]) => Some(Vec3::new(*r, *g, *b)),
         Some(_) => return Err(BadInput("--sky takes one value or R,G,B".into()).into()),
     };
+    let (environment, white_sky) = studio::gi_environment(&staged, sky);
+    if white_sky {
+        // A bare mesh has no light of its own: a uniform white sky shows its shape.
+        eprintln!(
+            "raypack: note: {} has no emissive material; it is lit by a uniform sky of radiance 1 (--sky R,G,B sets another)",
+            args.scene
+        );
+    }
+    let mut scene = staged.scene;
     if !environment.is_finite() || environment.min_element() < 0.0 {
         return Err(BadInput("--sky values must be finite and >= 0".into()).into());
     }
@@ -682,17 +604,11 @@ fn apply_overrides(scene: &mut Scene, args: &Args, spp: Option<u32>) -> Result<(
     s.width = args.width.unwrap_or(s.width);
     s.height = args.height.unwrap_or(s.height);
     if let Some(spp) = spp {
-        let n = (spp as f64).sqrt().round() as u32;
-        if spp == 0 || n * n != spp || n > 16 {
-            return Err(BadInput(format!(
+        s.antialias = studio::whitted_antialias(s.antialias, spp).ok_or_else(|| {
+            BadInput(format!(
                 "--spp must be a square between 1 and 256 (1, 4, 9, 16, ...), not {spp}"
-            )));
-        }
-        s.antialias = match (n, s.antialias) {
-            (1, _) => AntiAlias::None,
-            (n, AntiAlias::Adaptive(_)) => AntiAlias::Adaptive(n),
-            (n, _) => AntiAlias::Full(n),
-        };
+            ))
+        })?;
     }
     if let Some(seed) = args.seed {
         s.seed = seed;

@@ -87,6 +87,53 @@ fn to_ray(o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Ray {
     Ray::new(o.as_vec3(), d.as_vec3(), t_min as f32, t_max as f32)
 }
 
+/// The camera of RAYS.md at one image size: the ray through any pixel, computed in f64.
+struct Pinhole {
+    eye: DVec3,
+    frame: Frame,
+    /// `tan(vfov / 2)`.
+    h: f64,
+    width: f64,
+    height: f64,
+}
+
+impl Pinhole {
+    /// The camera of `view` for a `width x height` image of at most [`MAX_PIXELS`]
+    /// pixels, or why there is none.
+    fn new(view: &View, width: u32, height: u32) -> Result<Pinhole, RaySetError> {
+        let what = || format!("image size {width}x{height}");
+        if width == 0 || height == 0 {
+            return Err(RaySetError::BadParameter {
+                what: what(),
+                reason: "width and height must be positive".into(),
+            });
+        }
+        if width as u64 * height as u64 > MAX_PIXELS {
+            return Err(RaySetError::BadParameter {
+                what: what(),
+                reason: format!("more than {MAX_PIXELS} pixels, the limit of scene files"),
+            });
+        }
+        Ok(Pinhole {
+            eye: view.eye,
+            frame: frame(view)?,
+            h: (view.vfov_deg * std::f64::consts::PI / 180.0 / 2.0).tan(),
+            width: width as f64,
+            height: height as f64,
+        })
+    }
+
+    /// The ray through the centre of pixel `(x, y)` (`y = 0` is the top row); pixels
+    /// past the image's edge continue the same grid.
+    fn ray(&self, x: u32, y: u32) -> Ray {
+        let (w, hh, f) = (self.width, self.height, &self.frame);
+        let ndc_x = ((x as f64 + 0.5) / w * 2.0 - 1.0) * self.h * (w / hh);
+        let ndc_y = (1.0 - (y as f64 + 0.5) / hh * 2.0) * self.h;
+        let d = normalize(f.forward + f.right * ndc_x + f.up * ndc_y);
+        to_ray(self.eye, d, 0.0, f64::INFINITY)
+    }
+}
+
 /// The `primary` set: the camera's rays at `width x height` in packet order, at most
 /// [`MAX_PIXELS`] of them (the limit of scene files).
 pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetError> {
@@ -98,28 +145,54 @@ pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetErr
             ),
         });
     }
-    if width as u64 * height as u64 > MAX_PIXELS {
-        return Err(RaySetError::BadParameter {
-            what: format!("image size {width}x{height}"),
-            reason: format!("more than {MAX_PIXELS} pixels, the limit of scene files"),
-        });
-    }
-    let f = frame(view)?;
-    let h = (view.vfov_deg * std::f64::consts::PI / 180.0 / 2.0).tan();
-    let (w, hh) = (width as f64, height as f64);
-    let aspect = w / hh;
+    let camera = Pinhole::new(view, width, height)?;
     let rays = (0..width as usize * height as usize)
         .map(|i| {
             let (x, y) = packet_pixel(i, width);
-            let ndc_x = ((x as f64 + 0.5) / w * 2.0 - 1.0) * h * aspect;
-            let ndc_y = (1.0 - (y as f64 + 0.5) / hh * 2.0) * h;
-            let d = normalize(f.forward + f.right * ndc_x + f.up * ndc_y);
-            to_ray(view.eye, d, 0.0, f64::INFINITY)
+            camera.ray(x, y)
         })
         .collect();
     Ok(RaySet {
         width,
         height,
+        rays,
+    })
+}
+
+/// The camera's rays of RAYS.md at any `width x height` (at most [`MAX_PIXELS`]), in
+/// row-major order: ray `y * width + x` through pixel `(x, y)`, bit for bit the ray of
+/// that pixel in [`primary`].
+pub fn camera_rays(view: &View, width: u32, height: u32) -> Result<Vec<Ray>, RaySetError> {
+    let camera = Pinhole::new(view, width, height)?;
+    Ok((0..height)
+        .into_par_iter()
+        .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| camera.ray(x, y))
+        .collect())
+}
+
+/// [`camera_rays`] as an image set in packet order, the image padded to the next
+/// multiples of [`TILE`] on the same pixel grid (the rays past the right and bottom
+/// edges are extra): what [`super::trace::trace_image`] traces in pixel blocks.
+pub fn padded_image_set(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetError> {
+    let camera = Pinhole::new(view, width, height)?;
+    let (pw, ph) = (width.next_multiple_of(TILE), height.next_multiple_of(TILE));
+    if pw as u64 * ph as u64 > MAX_PIXELS {
+        return Err(RaySetError::BadParameter {
+            what: format!("image size {width}x{height}"),
+            reason: format!("padded to {pw}x{ph}, more than {MAX_PIXELS} pixels"),
+        });
+    }
+    let rays = (0..pw as usize * ph as usize)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = packet_pixel(i, pw);
+            camera.ray(x, y)
+        })
+        .collect();
+    Ok(RaySet {
+        width: pw,
+        height: ph,
         rays,
     })
 }
