@@ -24,7 +24,7 @@ use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::PacketWidth;
 use raypack::accel::kdtree::traverse_packet::packet_split_count;
-use raypack::accel::kdtree::traverse_tile::{TILE_RAYS, tile_counts};
+use raypack::accel::kdtree::traverse_tile::tile_counts;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::accel::packet::{HitPacket, LaneHits, RayPacket};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
@@ -32,10 +32,11 @@ use raypack::accel::prims_packet::{
     intersect_box_packet, intersect_plane_packet, intersect_sphere_packet,
 };
 use raypack::accel::triaccel::TriAccel;
+use raypack::accel::{TILE_RAYS, TileWidth};
 use raypack::ray::{Hit, NO_HIT, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, block_pixel};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16, block_pixel};
 
 /// Draws the kernel tests need beyond [`Rng`]'s own.
 trait Draw {
@@ -476,7 +477,7 @@ fn assert_tree_matches<W: PacketWidth>(
 /// Closest hits and any-hit answers of `tree`'s ray tiles ([`TILE_RAYS`] consecutive
 /// rays of `rays`, groups of `W::LANES` sharing an entry point) against its scalar path.
 /// Returns the nodes the tiles descended together (their entry depths), summed.
-fn assert_tiles_match<W: Simd>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
+fn assert_tiles_match<W: TileWidth>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
     let what = &format!("{what} (tiles of {} lanes)", W::LANES);
     let before = tile_counts();
     for (n, tile) in rays.chunks(TILE_RAYS).enumerate() {
@@ -598,7 +599,30 @@ fn check_tree_scene(g: &Geometry, camera: &Camera, seed: u64, count: usize, what
     at_every_width!(check_tree_scene_at, g, camera, seed, count, what);
 }
 
-fn check_tree_scene_at<W: PacketWidth>(
+/// The tile checks at the widths a tile is traced in ([`TileWidth`]); none at 4 lanes.
+trait TileChecks: PacketWidth {
+    /// [`assert_tiles_match`] at this width, or `None` at a width tiles do not take.
+    fn tiles_match(tree: &KdTree, rays: &[Ray], what: &str) -> Option<u64>;
+}
+
+impl TileChecks for W4 {
+    fn tiles_match(_: &KdTree, _: &[Ray], _: &str) -> Option<u64> {
+        None
+    }
+}
+
+macro_rules! tile_checks {
+    ($($w:ty),*) => {$(
+        impl TileChecks for $w {
+            fn tiles_match(tree: &KdTree, rays: &[Ray], what: &str) -> Option<u64> {
+                Some(assert_tiles_match::<$w>(tree, rays, what))
+            }
+        }
+    )*};
+}
+tile_checks!(W8, W16);
+
+fn check_tree_scene_at<W: TileChecks>(
     g: &Geometry,
     camera: &Camera,
     seed: u64,
@@ -648,20 +672,20 @@ fn check_tree_scene_at<W: PacketWidth>(
     let shadows = shadow_packets::<W>(&tree, &quads, light, 1e-4 * b.diagonal());
     assert_tree_matches::<W>(&tree, &shadows, &format!("{what}, shadows"));
     if W::LANES >= 8 {
-        // Ray tiles of the same rays: camera rays in packet order (16x4 pixel blocks),
-        // random, adversarial, coherent and shadow rays.
+        // Ray tiles of the same rays (tiles take 8 and 16 lanes): camera rays in packet
+        // order (16x4 pixel blocks), random, adversarial, coherent and shadow rays.
         let frame = camera.frame(128, 96);
         let camera_rays: Vec<Ray> = common::quad_corners(128, 96)
             .into_iter()
             .flat_map(|(x, y)| frame.block_rays::<W4>(x, y))
             .collect();
-        assert_tiles_match::<W>(&tree, &camera_rays, &format!("{what}, camera"));
-        assert_tiles_match::<W>(&tree, &random, &format!("{what}, random"));
-        assert_tiles_match::<W>(&tree, &adversarial, &format!("{what}, adversarial"));
+        W::tiles_match(&tree, &camera_rays, &format!("{what}, camera"));
+        W::tiles_match(&tree, &random, &format!("{what}, random"));
+        W::tiles_match(&tree, &adversarial, &format!("{what}, adversarial"));
         let coherent = flatten(&coherent);
-        assert_tiles_match::<W>(&tree, &coherent, &format!("{what}, coherent"));
+        W::tiles_match(&tree, &coherent, &format!("{what}, coherent"));
         let shadows = flatten(&shadows);
-        assert_tiles_match::<W>(&tree, &shadows, &format!("{what}, shadows"));
+        W::tiles_match(&tree, &shadows, &format!("{what}, shadows"));
     }
 }
 
@@ -746,7 +770,7 @@ fn check_shared_scene(name: &str, stride: usize) {
     at_every_width!(check_shared_scene_at, name, &g, &camera, &tree, stride);
 }
 
-fn check_shared_scene_at<W: PacketWidth>(
+fn check_shared_scene_at<W: TileChecks>(
     name: &str,
     g: &Geometry,
     camera: &Camera,
@@ -766,7 +790,7 @@ fn check_shared_scene_at<W: PacketWidth>(
     assert_tree_matches::<W>(tree, &shadows, &format!("{name}, shadows"));
     if W::LANES >= 8 {
         let flat: Vec<Ray> = quads.iter().flatten().copied().collect();
-        let depth = assert_tiles_match::<W>(tree, &flat, &format!("{name}, camera"));
+        let depth = W::tiles_match(tree, &flat, &format!("{name}, camera")).unwrap_or(0);
         println!(
             "{name}, {} lanes: camera tiles descended {depth} nodes together",
             W::LANES
@@ -775,7 +799,7 @@ fn check_shared_scene_at<W: PacketWidth>(
             depth > 0,
             "{name}: no camera tile shared an entry point below the root"
         );
-        assert_tiles_match::<W>(tree, &flatten(&shadows), &format!("{name}, shadows"));
+        W::tiles_match(tree, &flatten(&shadows), &format!("{name}, shadows"));
     }
     let mut rng = Rng::new(name.len() as u64);
     let random = camera_rays(camera, 64, 48, 1)

@@ -136,6 +136,10 @@ pub trait Accel: Sync {
     }
 }
 
+/// The most rays [`Accel::intersect_tile`] and [`Accel::occluded_tile`] take (the bits
+/// of the occluded answer).
+pub const TILE_RAYS: usize = 64;
+
 /// Rays per task of [`Accel::intersect_batch`] and [`Accel::occluded_batch`]: enough for
 /// the stream kernel to keep its lanes full and the task overhead small, few enough that
 /// two threads share a 64K-ray batch evenly.
@@ -346,6 +350,12 @@ macro_rules! packet_width {
 packet_width!(W4, intersect_packet4, occluded_packet4);
 packet_width!(W8, intersect_packet8, occluded_packet8);
 packet_width!(W16, intersect_packet16, occluded_packet16);
+
+/// A width ray tiles are traced in: groups of 8 or 16 lanes (a tile of [`TILE_RAYS`]
+/// rays is at most 8 groups). 4 lanes is not one, so a 4-lane tile does not compile.
+pub trait TileWidth: PacketWidth {}
+impl TileWidth for W8 {}
+impl TileWidth for W16 {}
 
 /// Packet tracing at any width, for every accelerator (`dyn Accel` included).
 pub trait PacketTrace {

@@ -19,9 +19,7 @@
 
 use super::format::{RaySet, TILE, pixel_packet_index};
 use crate::accel::Mode;
-use crate::accel::kdtree::traverse_packet::sign_group_count;
-use crate::accel::kdtree::traverse_tile::TILE_RAYS;
-use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, intersect_each};
+use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, TILE_RAYS, intersect_each};
 use crate::ray::{Hit, Ray};
 use crate::simd::{MAX_LANES, Simd, Uint, W4, W8, W16, block_pixel};
 use rayon::prelude::*;
@@ -151,7 +149,7 @@ fn for_each_packet<W: PacketWidth>(
 pub fn sign_split_packets<W: PacketWidth>(rays: &[Ray], order: Order) -> [usize; 2] {
     let mut counts = [0, 0];
     for_each_packet::<W>(rays, order, |p, _| {
-        counts[0] += (sign_group_count(p) > 1) as usize;
+        counts[0] += (p.sign_group_count() > 1) as usize;
         counts[1] += 1;
     });
     counts

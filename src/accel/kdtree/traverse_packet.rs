@@ -33,8 +33,8 @@ use crate::accel::packet::{HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::Hit;
 use crate::simd::{
-    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl,
-    max_abs, prefetch,
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, max_abs,
+    prefetch,
 };
 use std::cell::Cell;
 
@@ -112,7 +112,7 @@ pub(super) fn coherent_groups<W: Simd>(
     rays: &RayPacket<W>,
     active: LaneBits,
 ) -> ([LaneBits; 8], usize) {
-    let (groups, count) = sign_groups(rays, active);
+    let (groups, count) = rays.sign_groups(active);
     if count > 1 {
         PACKET_SPLITS.with(
             #[inline(always)]
@@ -129,53 +129,6 @@ pub(super) fn coherent_groups<W: Simd>(
 #[inline(always)]
 fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
     group.count_ones() <= W::SCALAR_GROUP_MAX
-}
-
-/// How many groups the traversal walks the active lanes of `rays` in: none without an
-/// active lane, 1 for a packet whose lanes agree on every direction sign, else one per
-/// sign octant present. `raypack bench` reports the share of packets of a ray set that split.
-#[inline(always)]
-pub fn sign_group_count<W: Simd>(rays: &RayPacket<W>) -> usize {
-    sign_groups(rays, rays.active.bits()).1
-}
-
-/// Lane groups of `active` that agree on every direction sign: none when `active` is
-/// empty, one group when the packet is coherent, else one per sign octant present
-/// (zero components count as positive; they agree with either side), at most eight.
-#[inline(always)]
-fn sign_groups<W: Simd>(rays: &RayPacket<W>, active: LaneBits) -> ([LaneBits; 8], usize) {
-    if active == 0 {
-        return ([0; 8], 0);
-    }
-    let neg = rays.dir.amap(
-        #[inline(always)]
-        |d| d.cmp_lt(Vf::<W>::ZERO).bits() & active,
-    );
-    let pos = rays.dir.amap(
-        #[inline(always)]
-        |d| d.cmp_gt(Vf::<W>::ZERO).bits() & active,
-    );
-    let mut groups = [0; 8];
-    if (0..3).all(
-        #[inline(always)]
-        |a| neg[a] == 0 || pos[a] == 0,
-    ) {
-        groups[0] = active;
-        return (groups, 1);
-    }
-    let mut count = 0;
-    for key in 0..8 {
-        let pick = inl(
-            #[inline(always)]
-            |a: usize| if key & (1 << a) != 0 { neg[a] } else { !neg[a] },
-        );
-        let group = active & pick(0) & pick(1) & pick(2);
-        if group != 0 {
-            groups[count] = group;
-            count += 1;
-        }
-    }
-    (groups, count)
 }
 
 impl KdTree {

@@ -40,8 +40,7 @@ use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs};
 use std::cell::Cell;
 
-/// Rays per tile.
-pub const TILE_RAYS: usize = 64;
+use crate::accel::{TILE_RAYS, TileWidth};
 
 /// Groups of the narrowest width a tile is made of (8 lanes).
 const MAX_GROUPS: usize = TILE_RAYS / 8;
@@ -114,9 +113,16 @@ struct Bound {
 impl KdTree {
     /// Closest hits of `rays` (at most [`TILE_RAYS`]) into `out`, groups of `W::LANES`
     /// sharing an entry point; lane by lane the answer of
-    /// [`crate::accel::Accel::intersect`], bit for bit.
+    /// [`crate::accel::Accel::intersect`], bit for bit. A tile takes groups of 8 or 16
+    /// lanes ([`TileWidth`]); 4 is a compile error:
+    ///
+    /// ```compile_fail
+    /// use raypack::prelude::*;
+    /// let tree = KdTree::build(&Geometry::default());
+    /// tree.intersect_tile::<W4>(&[], &mut []);
+    /// ```
     #[inline(always)]
-    pub fn intersect_tile<W: Simd>(&self, rays: &[Ray], out: &mut [Hit]) {
+    pub fn intersect_tile<W: TileWidth>(&self, rays: &[Ray], out: &mut [Hit]) {
         dispatch!(W::LANES; self.intersect_tile_in::<@>(rays, out))
     }
 
@@ -158,7 +164,7 @@ impl KdTree {
     /// Bit `i` set when ray `i` of `rays` (at most [`TILE_RAYS`]) is occluded; the answer
     /// of [`crate::accel::Accel::occluded`] ray by ray.
     #[inline(always)]
-    pub fn occluded_tile<W: Simd>(&self, rays: &[Ray]) -> u64 {
+    pub fn occluded_tile<W: TileWidth>(&self, rays: &[Ray]) -> u64 {
         dispatch!(W::LANES; self.occluded_tile_in::<@>(rays))
     }
 
