@@ -335,6 +335,23 @@ def format_row(row):
     return ", ".join(parts)
 
 
+# The package's aim: raypack at least this many times Open3D's rate, per set.
+TARGET = {"primary": 2.0, "shadow": 2.0, "diffuse": 1.2}
+
+
+def verdict(rows):
+    """Which rows reach TARGET over Open3D, and which do not."""
+    met = [r for r in rows if r["raypack"] / r["Open3D"] >= TARGET.get(r["set"], 0)]
+    missed = [r for r in rows if r not in met]
+    name = lambda r: f"{r['scene']} {r['set']} {r['raypack'] / r['Open3D']:.2f}"
+    aim = ", ".join(f"{k} {v:g}x" for k, v in TARGET.items())
+    lines = [f"Aim, over Open3D: {aim}. Reached by {len(met)} of {len(rows)} rows"
+             + (f": {'; '.join(map(name, met))}." if met else ".")]
+    if missed:
+        lines.append(f"Not reached: {'; '.join(map(name, missed))}.")
+    return "\n".join(lines)
+
+
 def table(rows):
     embreex = any("embreex" in r for r in rows)
     head = ["scene", "set", "rays", "raypack Mrays/s", "Open3D Mrays/s", "raypack / Open3D"]
@@ -371,7 +388,14 @@ def version(package):
 
 
 def page(rows, args):
-    command = shlex.join([sys.executable, "perf/python_vs_open3d.py", *sys.argv[1:]])
+    # The ray folder is a cache: the command reproduces the page without it.
+    argv, skip = [], False
+    for a in sys.argv[1:]:
+        if skip or a.startswith("--rays-dir"):
+            skip = a == "--rays-dir"
+            continue
+        argv.append(a)
+    command = shlex.join(["python3", "perf/python_vs_open3d.py", *argv])
     embreex = (f"embreex {version('embreex')}" if EmbreeScene
                else f"embreex not measured ({EMBREEX_MISSING})")
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -397,6 +421,8 @@ a miss (closest hits), or the same occluded flag (shadow rays). Ties between tri
 and rays grazing an edge may differ.
 
 {table(rows)}
+
+{verdict(rows)}
 
 ## What is timed
 
