@@ -5,8 +5,14 @@ global illumination beside Mitsuba 3.
     python3 perf/report.py                    # everything; writes perf/README.md
     python3 perf/report.py --quick --out /tmp/p.md   # small sizes, one round: checks the script
     python3 perf/report.py --only bench --scene bunny   # one section, one scene (to stdout)
+    python3 perf/report.py --only bench --kind spd,model --out /tmp/p.md   # some kinds
+    python3 perf/report.py --list             # the scenes and their kinds
 
-Standard library only. It builds raypack (`cargo build --release`) unless `--raypack
+Standard library only (the generated scenes' perf/make_scene.py needs numpy). The suite
+covers every kind of scene (KINDS): architecture interiors, isolated models, a
+heightfield terrain, a triangle soup, Haines' SPD scenes, a large scene of 5M triangles
+and the Cornell box; the generated ones are written as OBJ into the cache folder the
+first time they are needed. It builds raypack (`cargo build --release`) unless `--raypack
 PATH` names a binary; builds the Embree harness (../shared/peers/embree beside the
 repository, or `--embree DIR`) into the cache folder when libembree-dev is installed, and
 without it measures raypack alone and says so on the page; writes the ray sets with the
@@ -15,8 +21,9 @@ harness's `gen` (both tracers then trace the same rays) into the cache folder
 under a timeout. The GI section comes from perf/gi_vs_mitsuba.py, run as its own
 process.
 
-A run with `--only` or `--scene` measures part of the suite and prints its page on
-standard output (or writes `--out FILE`); only a whole run writes perf/README.md.
+A run with `--only`, `--scene` or `--kind` measures part of the suite and prints its
+page on standard output (or writes `--out FILE`); only a whole run writes
+perf/README.md. A page written to a file gets the ratio plot beside it as suite.svg.
 """
 
 import argparse
@@ -34,6 +41,7 @@ import tempfile
 import threading
 import time
 import tomllib
+import xml.sax.saxutils
 from pathlib import Path
 
 # The suite, one row per scene. `name` labels the row and is raypack's scene argument
@@ -41,16 +49,83 @@ from pathlib import Path
 # table's. A row can instead carry its own: `obj` (relative to the scenes folder, or
 # with `{cache}` for a file made here), `eye`, `target`, `up`, `vfov_deg`, `raypack` (the
 # scene argument raypack gets, e.g. the OBJ's path) and `make` (a command that writes the
-# OBJ when it is missing; `{cache}`, `{raypack}` and `{repo}` are filled in), e.g.
+# OBJ when it is missing; `{cache}`, `{raypack}`, `{repo}` and `{python}`, the interpreter
+# running this script, are filled in), e.g.
 #   {"name": "grid500", "obj": "{cache}/grid500.obj", "raypack": "{cache}/grid500.obj",
 #    "make": "python3 {repo}/perf/grid_obj.py 500 {cache}/grid500.obj",
 #    "eye": [0.5, 0.5, 2.0], "target": [0.5, 0.5, 0.0], "up": [0, 1, 0], "vfov_deg": 60},
+# Instead of `eye` and `target`, `frame` [x, y, z] looks at the centre of the OBJ's
+# bounds from that direction, from where the bounding sphere just fills the vertical
+# field of view (raypack's framing of the SPD scenes, src/scene/spd.rs). `light` [x, y,
+# z] is the point light of the shadow set (the harness's `gen --light`; without it, the
+# harness's rule). `kind` groups the rows (KINDS) for `--kind` and the summary. A file
+# made here is made once: delete it from the cache folder when its generator changes.
+SPD_MAKE = "{raypack} rays spd:%s --obj {cache}/scenes/spd-%s.obj"
 SCENES = [
-    {"name": "sponza"},
-    {"name": "conference"},
-    {"name": "bunny"},
-    {"name": "cornell_box"},
+    {"name": "sponza", "kind": "interior"},
+    {"name": "conference", "kind": "interior"},
+    {"name": "bunny", "kind": "model"},
+    # A 2.3 m lumpy statue seen from 3.7 m at chest height, and a torus knot; both stand
+    # in empty space, like a scanned model.
+    {"name": "statue", "kind": "model", "obj": "{cache}/scenes/statue.obj",
+     "raypack": "{cache}/scenes/statue.obj",
+     "make": "{python} {repo}/perf/make_scene.py statue {cache}/scenes/statue.obj",
+     "eye": [1.0, 1.5, 3.6], "target": [0.0, 1.13, 0.0], "up": [0, 1, 0], "vfov_deg": 45},
+    {"name": "knot", "kind": "model", "obj": "{cache}/scenes/knot.obj",
+     "raypack": "{cache}/scenes/knot.obj",
+     "make": "{python} {repo}/perf/make_scene.py knot {cache}/scenes/knot.obj",
+     "eye": [0.0, -6.0, 9.0], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "vfov_deg": 40},
+    # 1 km of hills: the eye 30 m above a hillside in one corner, looking across to the
+    # far corner and the sky above it; a low sun off to the left casts long shadows.
+    {"name": "terrain", "kind": "terrain", "obj": "{cache}/scenes/terrain.obj",
+     "raypack": "{cache}/scenes/terrain.obj",
+     "make": "{python} {repo}/perf/make_scene.py terrain {cache}/scenes/terrain.obj",
+     "eye": [985.0, 70.0, 15.0], "target": [0.0, 40.0, 1000.0], "up": [0, 1, 0],
+     "vfov_deg": 50, "light": [-500.0, 300.0, 500.0]},
+    {"name": "soup", "kind": "soup", "obj": "{cache}/scenes/soup.obj",
+     "raypack": "{cache}/scenes/soup.obj",
+     "make": "{python} {repo}/perf/make_scene.py soup {cache}/scenes/soup.obj",
+     "eye": [2.6, 1.9, 3.4], "target": [0.0, 0.0, 0.0], "up": [0, 1, 0], "vfov_deg": 45},
+    # Haines' SPD at raypack's default sizes, written as OBJ by raypack (spheres as UV
+    # spheres of 8 rings), so both tracers trace the same triangles; the balls' published
+    # view, the others raypack's framing of their bounds.
+    {"name": "spd_balls", "kind": "spd", "obj": "{cache}/scenes/spd-balls.obj",
+     "raypack": "{cache}/scenes/spd-balls.obj", "make": SPD_MAKE % ("balls:4", "balls"),
+     "eye": [2.1, 1.3, 1.7], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "vfov_deg": 45},
+    {"name": "spd_gears", "kind": "spd", "obj": "{cache}/scenes/spd-gears.obj",
+     "raypack": "{cache}/scenes/spd-gears.obj", "make": SPD_MAKE % ("gears:4", "gears"),
+     "frame": [-0.6, -1.0, 1.1], "up": [0, 0, 1], "vfov_deg": 45},
+    {"name": "spd_mount", "kind": "spd", "obj": "{cache}/scenes/spd-mount.obj",
+     "raypack": "{cache}/scenes/spd-mount.obj", "make": SPD_MAKE % ("mount:6", "mount"),
+     "frame": [-1.0, -0.8, 0.6], "up": [0, 0, 1], "vfov_deg": 45},
+    {"name": "spd_rings", "kind": "spd", "obj": "{cache}/scenes/spd-rings.obj",
+     "raypack": "{cache}/scenes/spd-rings.obj", "make": SPD_MAKE % ("rings:7", "rings"),
+     "frame": [-1.0, -0.7, 0.8], "up": [0, 0, 1], "vfov_deg": 45},
+    {"name": "spd_tetra", "kind": "spd", "obj": "{cache}/scenes/spd-tetra.obj",
+     "raypack": "{cache}/scenes/spd-tetra.obj", "make": SPD_MAKE % ("tetra:6", "tetra"),
+     "frame": [0.9, -1.0, 0.55], "up": [0, 0, 1], "vfov_deg": 45},
+    {"name": "spd_tree", "kind": "spd", "obj": "{cache}/scenes/spd-tree.obj",
+     "raypack": "{cache}/scenes/spd-tree.obj", "make": SPD_MAKE % ("tree:11", "tree"),
+     "frame": [-0.3, -1.0, 0.35], "up": [0, 0, 1], "vfov_deg": 45},
+    # The terrain's landscape on 1,600 x 1,600 vertices: the same view, five times the
+    # triangles.
+    {"name": "terrain5m", "kind": "large", "obj": "{cache}/scenes/terrain5m.obj",
+     "raypack": "{cache}/scenes/terrain5m.obj",
+     "make": "{python} {repo}/perf/make_scene.py terrain5m {cache}/scenes/terrain5m.obj",
+     "eye": [985.0, 70.0, 15.0], "target": [0.0, 40.0, 1000.0], "up": [0, 1, 0],
+     "vfov_deg": 50, "light": [-500.0, 300.0, 500.0]},
+    {"name": "cornell_box", "kind": "box"},
 ]
+# The kinds of scene, in the order of the summary.
+KINDS = {
+    "interior": "architecture interiors",
+    "model": "isolated models",
+    "terrain": "heightfield terrain",
+    "soup": "triangle soup",
+    "spd": "SPD scenes",
+    "large": "large (5M+ triangles)",
+    "box": "Cornell box",
+}
 
 # The standard sets of RAYS.md; shadow rays are any-hit queries for both tracers.
 SETS = ["primary", "shadow", "diffuse"]
@@ -187,34 +262,83 @@ def fmt_vec(v):
     return ",".join(repr(float(x)) for x in v)
 
 
-def suite(scenes_dir, cache, raypack, names):
-    """The rows of SCENES to measure (all, or those named), resolved: obj path, camera,
-    raypack's scene argument. Runs each row's `make` when its OBJ is missing."""
+def obj_bounds(path):
+    """The smallest and largest vertex coordinates of an OBJ file."""
+    lo, hi = [math.inf] * 3, [-math.inf] * 3
+    with open(path) as f:
+        for line in f:
+            if line.startswith("v "):
+                xyz = line.split()[1:4]
+                for a in range(3):
+                    x = float(xyz[a])
+                    lo[a], hi[a] = min(lo[a], x), max(hi[a], x)
+    return lo, hi
+
+
+def framing(obj, direction, vfov_deg):
+    """Eye and target looking at the centre of the OBJ's bounds from `direction`, at the
+    distance where the bounding sphere just fills the vertical field of view."""
+    lo, hi = obj_bounds(obj)
+    centre = [(a + b) / 2 for a, b in zip(lo, hi)]
+    radius = math.dist(lo, hi) / 2
+    dist = radius / math.sin(math.radians(vfov_deg) / 2)
+    norm = math.hypot(*direction)
+    eye = [round(c + d / norm * dist, 6) for c, d in zip(centre, direction)]
+    return eye, [round(c, 6) for c in centre]
+
+
+def split_list(args):
+    """Repeated options whose values may also be comma-separated lists."""
+    return [x for a in args for x in a.split(",") if x]
+
+
+def suite(scenes_dir, cache, raypack, names, kinds=()):
+    """The rows of SCENES to measure (all, or those named or of the kinds given),
+    resolved: obj path, camera, light, raypack's scene argument. Runs each row's `make`
+    when its OBJ is missing."""
     cams = tomllib.loads((scenes_dir / "cameras.toml").read_text())
     known = [r["name"] for r in SCENES]
     for n in names:
         if n not in known:
             sys.exit(f"report.py: --scene {n}: not in the suite ({', '.join(known)})")
+    for k in kinds:
+        if k not in KINDS:
+            sys.exit(f"report.py: --kind {k}: not a kind of the suite ({', '.join(KINDS)})")
     rows = []
     for row in SCENES:
-        if names and row["name"] not in names:
+        if (names or kinds) and row["name"] not in names and row["kind"] not in kinds:
             continue
-        fill = {"cache": str(cache), "raypack": str(raypack), "repo": str(REPO)}
+        fill = {"cache": str(cache), "raypack": str(raypack), "repo": str(REPO),
+                "python": sys.executable}
         r = dict(cams.get(row["name"], {}))
         r.update({k: (v.format(**fill) if isinstance(v, str) else v) for k, v in row.items()})
         obj = scenes_dir / r["obj"]
         if not obj.is_file() and "make" in r:
             log(f"{row['name']}: {r['make']}")
+            obj.parent.mkdir(parents=True, exist_ok=True)
             run(shlex.split(r["make"]), 3600, cwd=REPO)
         if not obj.is_file():
             sys.exit(f"report.py: {row['name']}: {obj} not found")
+        if "frame" in r:
+            r["eye"], r["target"] = framing(obj, r["frame"], r["vfov_deg"])
         rows.append({
             "name": r["name"],
+            "kind": r["kind"],
             "raypack": r.get("raypack", r["name"]),
             "obj": obj,
             "camera": {k: r[k] for k in ("eye", "target", "up", "vfov_deg")},
+            "light": r.get("light"),
+            "source": scene_source(row),
         })
     return rows
+
+
+def scene_source(row):
+    """Where a row's OBJ comes from, for the page: cameras.toml or its `make`."""
+    if "make" not in row:
+        return "../shared/scenes (cameras.toml)"
+    cmd = row["make"].replace("{python} {repo}/", "python3 ").replace("{raypack}", "raypack")
+    return f"`{cmd.replace('{cache}', '$CACHE')}`"
 
 
 class Embree:
@@ -231,7 +355,8 @@ class Embree:
         run([self.binary, "gen", "--obj", row["obj"], "--eye", fmt_vec(c["eye"]),
              "--target", fmt_vec(c["target"]), "--up", fmt_vec(c["up"]),
              "--vfov", repr(float(c["vfov_deg"])), "--width", width, "--height", height,
-             "--out", out], 1800)
+             "--out", out] + (["--light", fmt_vec(row["light"])] if row["light"] else []),
+            1800)
 
     def bench(self, obj, rays, query, coherent, repeat, threads=1, build_threads=None,
               build_repeat=1, modes=EMBREE_KERNELS):
@@ -276,6 +401,8 @@ def ray_sets(row, cache, embree, raypack, width, height):
     stamp = folder / "done.json"
     want = {"obj": str(row["obj"]), "mtime": row["obj"].stat().st_mtime,
             "size": row["obj"].stat().st_size, "camera": row["camera"]}
+    if row["light"]:
+        want["light"] = row["light"]
     if stamp.is_file() and json.loads(stamp.read_text()) == want:
         return folder
     shutil.rmtree(folder, ignore_errors=True)
@@ -313,7 +440,7 @@ def measure_traversal(rows, raypack, embree, cache, cfg):
     data = []
     for row in rows:
         folder = ray_sets(row, cache, embree, raypack, cfg["width"], cfg["height"])
-        entry = {"scene": row["name"], "sets": {}, "triangles": None}
+        entry = {"scene": row["name"], "kind": row["kind"], "sets": {}, "triangles": None}
         for s in SETS:
             entry["sets"][s] = {"raypack": [], "embree": [], "rays": None,
                                 "hits_raypack": None, "hits_embree": None}
@@ -365,7 +492,8 @@ def summarise_traversal(data):
         for s in SETS:
             e = entry["sets"][s]
             rmode, rrate = best(e["raypack"])
-            row = {"scene": entry["scene"], "triangles": entry["triangles"], "set": s,
+            row = {"scene": entry["scene"], "kind": entry["kind"],
+                   "triangles": entry["triangles"], "set": s,
                    "rays": e["rays"], "raypack_mode": rmode, "raypack": rrate,
                    "raypack_all": {m: statistics.median(r[m] for r in e["raypack"])
                                    for m in e["raypack"][0]},
@@ -453,7 +581,126 @@ def secs(x):
     return f"{x:.3f} s" if x >= 0.01 else f"{x * 1000:.2f} ms"
 
 
-def section_bench(trav, embree_note, cfg, quick_flag):
+# A (scene, set) pair is at Embree's rate from GOOD up, and well behind it below POOR.
+GOOD, POOR = 1.0, 0.8
+SET_COLOURS = {"primary": "#4e79a7", "shadow": "#e15759", "diffuse": "#59a14f"}
+
+
+def ratio_groups(trav):
+    """(label, pairs) for the whole suite, each set and each kind of scene, the pairs
+    being the rows of `trav` with a ratio."""
+    pairs = [r for r in trav if "ratio" in r]
+    groups = [("whole suite", pairs)]
+    groups += [(f"{s} sets", [r for r in pairs if r["set"] == s]) for s in SETS]
+    groups += [(label, [r for r in pairs if r["kind"] == k]) for k, label in KINDS.items()]
+    return [(label, rs) for label, rs in groups if rs]
+
+
+def ratio_summary(trav, plot):
+    """The summary of the ratios: geometric means and counts per group, the pairs below
+    POOR, and the plot's link."""
+    body = []
+    for label, rs in ratio_groups(trav):
+        ratios = [r["ratio"] for r in rs]
+        body.append([label, len(ratios), f"**{geomean(ratios):.2f}**",
+                     sum(x >= GOOD for x in ratios), sum(x < POOR for x in ratios)])
+    out = [f"raypack / Embree by group of (scene, set) pairs: the geometric mean of the "
+           f"ratios, and how many pairs reach Embree's rate (ratio {GOOD:.2f} or more) or "
+           f"stay below {POOR:.2f} of it:", ""]
+    out += [table(["pairs", "count", "geometric mean", f">= {GOOD:.2f}", f"< {POOR:.2f}"],
+                  body, ["l", "r", "r", "r", "r"]), ""]
+    poor = [f"{r['scene']} {r['set']} ({r['ratio']:.2f})" for r in trav
+            if "ratio" in r and r["ratio"] < POOR]
+    out += [f"Below {POOR:.2f}: {', '.join(poor) or 'none'}.", ""]
+    if plot:
+        out += [f"![raypack / Embree per scene and set, lines at {GOOD:.1f} and {POOR:.1f}]"
+                f"({plot})", ""]
+    return out
+
+
+def suite_svg(trav):
+    """A bar chart, as SVG text, of raypack / Embree per (scene, set), one colour per set,
+    with lines at GOOD and POOR; None when no pair has a ratio."""
+    pairs = {(r["scene"], r["set"]): r["ratio"] for r in trav if "ratio" in r}
+    if not pairs:
+        return None
+    scenes = list(dict.fromkeys(scene for scene, _ in pairs))
+    bar, gap, left, right, top, bottom, plot_h = 10, 12, 40, 12, 40, 72, 220
+    group = len(SETS) * bar + gap
+    width = max(left + right + len(scenes) * group, 540)
+    height = top + plot_h + bottom
+    steps = math.ceil(max([1.2] + list(pairs.values())) * 1.05 / 0.2)
+    ymax = steps * 0.2
+
+    def y(v):
+        return top + plot_h * (1 - min(v, ymax) / ymax)
+
+    esc = xml.sax.saxutils.escape
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+           f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
+           f'<rect width="{width}" height="{height}" fill="white"/>',
+           f'<text x="{left}" y="14" font-size="12">raypack / Embree, Mrays/s of the best '
+           'mode over the best kernel, one thread</text>']
+    x = left
+    for s in SETS:
+        out.append(f'<rect x="{x}" y="22" width="10" height="10" fill="{SET_COLOURS[s]}"/>'
+                   f'<text x="{x + 14}" y="31">{s}</text>')
+        x += 80
+    for i in range(steps + 1):
+        v = i * 0.2
+        out.append(f'<line x1="{left}" x2="{width - right}" y1="{y(v):.1f}" y2="{y(v):.1f}" '
+                   f'stroke="#e8e8e8"/><text x="{left - 4}" y="{y(v) + 4:.1f}" '
+                   f'text-anchor="end">{v:.1f}</text>')
+    x = left + gap / 2
+    for scene in scenes:
+        for s in SETS:
+            if (scene, s) in pairs:
+                v = pairs[(scene, s)]
+                out.append(f'<rect x="{x:.1f}" y="{y(v):.1f}" width="{bar - 1}" '
+                           f'height="{y(0) - y(v):.1f}" fill="{SET_COLOURS[s]}">'
+                           f'<title>{esc(scene)} {s}: {v:.2f}</title></rect>')
+            x += bar
+        centre = x - len(SETS) * bar / 2
+        out.append(f'<text transform="translate({centre:.1f},{y(0) + 12:.1f}) rotate(-40)" '
+                   f'text-anchor="end">{esc(scene)}</text>')
+        x += gap
+    for v, dash in ((GOOD, ""), (POOR, ' stroke-dasharray="5,3"')):
+        out.append(f'<line x1="{left}" x2="{width - right}" y1="{y(v):.1f}" y2="{y(v):.1f}" '
+                   f'stroke="#222" stroke-width="1.2"{dash}/>')
+    out.append(f'<line x1="{left}" x2="{width - right}" y1="{y(0):.1f}" y2="{y(0):.1f}" '
+               'stroke="#222"/>')
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
+def section_scenes(rows, triangles):
+    """The suite: one row per scene with its kind, size, camera, light and source."""
+    out = ["## Scenes", ""]
+    out.append(
+        "The rows of `SCENES` (perf/report.py). Cameras are ../shared/RAYS.md's pinhole "
+        "(eye, target, up, vertical field of view). A generated scene's OBJ is written once "
+        "into the cache folder ($CACHE) by the command shown; raypack and Embree both read "
+        "that file. *Light* is the shadow set's point light where the row sets one, else "
+        "the harness's rule (../shared/peers/embree/README.md).")
+    out.append("")
+
+    def vec(v):
+        return "(" + ", ".join(f"{x:g}" for x in v) + ")"
+
+    body = []
+    for r in rows:
+        c = r["camera"]
+        tris = triangles.get(r["name"])
+        body.append([r["name"], KINDS[r["kind"]], f"{tris:,}" if tris else "-",
+                     f"eye {vec(c['eye'])}, target {vec(c['target'])}, up {vec(c['up'])}, "
+                     f"{c['vfov_deg']:g} deg", vec(r["light"]) if r["light"] else "rule",
+                     r["source"]])
+    out += [table(["scene", "kind", "triangles", "camera", "light", "OBJ"], body,
+                  ["l", "l", "r", "l", "l", "l"]), ""]
+    return out
+
+
+def section_bench(trav, embree_note, cfg, quick_flag, plot=None):
     out = ["## Traversal beside Embree", ""]
     modes = list(trav[0]["raypack_all"]) if trav else []
     have_embree = any("embree" in r for r in trav)
@@ -493,11 +740,7 @@ def section_bench(trav, embree_note, cfg, quick_flag):
         body.append(line)
     out += [table(header, body, ["l", "r", "l", "r", "l", "r", "l", "r", "r", "l"]), ""]
     if have_embree:
-        g = geomean([r["ratio"] for r in trav])
-        per = [f"{s} {geomean([r['ratio'] for r in trav if r['set'] == s]):.2f}"
-               for s in SETS if any(r["set"] == s for r in trav)]
-        out += [f"Geometric mean of raypack / Embree over the {len(trav)} pairs: "
-                f"**{g:.2f}**; per set: {', '.join(per)}.", ""]
+        out += ratio_summary(trav, plot)
     out += ["Every mode, medians over the rounds (Mrays/s; the best of each tracer in bold):", ""]
     header = ["scene", "set"] + [f"raypack {m}" for m in modes]
     if have_embree:
@@ -513,7 +756,7 @@ def section_bench(trav, embree_note, cfg, quick_flag):
         body.append(line)
     out += [table(header, body, ["l", "l"] + ["r"] * (len(header) - 2)), ""]
     out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only bench` (one scene: add "
-            "`--scene NAME`).", ""]
+            "`--scene NAME`; one kind: `--kind KIND`).", ""]
     return out
 
 
@@ -524,12 +767,14 @@ def section_build(builds, have_embree, cfg, quick_flag):
         f"raypack: `raypack info NAME --threads T --repeat {cfg['builds']}` (the default "
         "tree flags)." + (
             " Embree: the harness's `BUILD` line (`rtcCommitScene` alone) with "
-            "`--build-threads T`, taken right after raypack's." if have_embree else ""))
+            "`--build-threads T`, taken right after raypack's." if have_embree else "") +
+        " *Tree memory* is raypack's whole tree (`raypack info`'s `memory total`: nodes, "
+        "leaf table, index lists and TriAccel records), also per triangle of the scene.")
     out.append("")
     header = ["scene", "triangles", "raypack 1 thread", "raypack 2 threads"]
     if have_embree:
         header += ["Embree high, 1 thread", "Embree high, 2 threads", "Embree medium, 2 threads"]
-    header += ["nodes", "memory", "SAH cost"]
+    header += ["nodes", "tree memory", "bytes / triangle", "SAH cost"]
     body = []
     for b in builds:
         line = [b["scene"], f"{b['triangles']:,}", secs(b["raypack_1"]), secs(b["raypack_2"])]
@@ -538,14 +783,14 @@ def section_build(builds, have_embree, cfg, quick_flag):
                      secs(b.get("embree_medium_2"))]
         size = (f"{b['bytes'] / 2**20:.2f} MiB" if b["bytes"] >= 2**20
                 else f"{b['bytes'] / 2**10:.2f} KiB")
-        line += [f"{b['nodes']:,}", f"{size} ({b['bytes'] / max(b['triangles'], 1):.1f} B/tri)",
+        line += [f"{b['nodes']:,}", size, f"{b['bytes'] / max(b['triangles'], 1):.1f}",
                  f"{b['sah']:.2f}"]
         body.append(line)
     out += [table(header, body, ["l"] + ["r"] * (len(header) - 1)), ""]
     builder = sorted({b["builder"] for b in builds})
     out += [f"raypack builder: {', '.join(builder)}.", ""]
     out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only build` (one scene: add "
-            "`--scene NAME`).", ""]
+            "`--scene NAME`; one kind: `--kind KIND`).", ""]
     return out
 
 
@@ -635,14 +880,17 @@ def page(meta, parts):
             "beside it:", "",
             "    apt-get update && apt-get install -y libembree-dev   # Embree 3 for the harness",
             "    pip install mitsuba==3.9.1                            # the GI comparison",
+            "    pip install numpy                                     # perf/make_scene.py",
             "    python3 perf/report.py                                # writes perf/README.md",
             "",
-            "`--quick` checks the script in a few minutes; `--only bench|build|gi` and "
-            "`--scene NAME` (repeatable) measure part of the suite and print the page "
+            "`--quick` checks the script in a few minutes; `--only bench|build|gi`, "
+            "`--scene NAME` and `--kind KIND` (repeatable, or comma-separated lists; "
+            "`--list` names them) measure part of the suite and print the page "
             "(or `--out FILE`); `--raypack PATH` skips the build; `--embree DIR`, "
             "`--scenes DIR` and `--cache DIR` move the inputs and the ray files "
-            "(default cache ~/.cache/raypack-perf). The scenes are the rows of `SCENES` at "
-            "the top of perf/report.py.", ""]
+            "(default cache ~/.cache/raypack-perf, which also holds the generated scenes, "
+            "about 0.5 GB). The scenes are the rows of `SCENES` at the top of "
+            "perf/report.py.", ""]
     return "\n".join(out).rstrip() + "\n"
 
 
@@ -651,7 +899,13 @@ def main():
     ap.add_argument("--quick", action="store_true", help="small sizes, one round")
     ap.add_argument("--only", choices=["bench", "build", "gi"], action="append",
                     help="measure only this section (repeatable)")
-    ap.add_argument("--scene", action="append", default=[], help="only this scene (repeatable)")
+    ap.add_argument("--scene", action="append", default=[],
+                    help="only this scene (repeatable, or a comma-separated list)")
+    ap.add_argument("--kind", action="append", default=[],
+                    help=f"only the scenes of this kind (repeatable, or a comma-separated "
+                    f"list): {', '.join(KINDS)}")
+    ap.add_argument("--list", action="store_true",
+                    help="print the suite's scenes and kinds, measure nothing")
     ap.add_argument("--out", help="write the page here (default: perf/README.md for a "
                     "whole run, standard output otherwise)")
     ap.add_argument("--raypack", help="the raypack binary (default: cargo build --release)")
@@ -660,17 +914,22 @@ def main():
     ap.add_argument("--cache", help="ray files and builds (default ~/.cache/raypack-perf)")
     args = ap.parse_args()
 
+    names, kinds = split_list(args.scene), split_list(args.kind)
+    if args.list:
+        for row in SCENES:
+            print(f"{row['name']:<12} {row['kind']:<9} {KINDS[row['kind']]}")
+        return
     start = time.time()
     cfg = QUICK if args.quick else FULL
     only = set(args.only or ["bench", "build", "gi"])
-    whole = not args.only and not args.scene
+    whole = not args.only and not names and not kinds
     out_path = args.out or (str(README) if whole else "-")
     commit, dirty = git_state()
     loads = LoadSampler()
     scenes_dir = scenes_folder(args.scenes)
     cache = cache_folder(args.cache)
     raypack = raypack_binary(args.raypack)
-    rows = suite(scenes_dir, cache, raypack, args.scene)
+    rows = suite(scenes_dir, cache, raypack, names, kinds)
     embree, embree_note = (None, "not needed")
     if only & {"bench", "build"}:
         embree, embree_note = embree_harness(args.embree, cache)
@@ -684,13 +943,26 @@ def main():
     quick_flag = " --quick" if args.quick else ""
     parts = []
     peers = []
+    triangles = {}
+    # The plot goes beside the page (perf/suite.svg beside perf/README.md).
+    plot = Path(out_path).with_name("suite.svg") if out_path != "-" else None
+    svg = None
     if "bench" in only:
         data = measure_traversal(rows, raypack, embree, cache, cfg)
         meta["simd"] = next((d["simd"] for d in data if "simd" in d), None) or "unknown"
-        parts.append(section_bench(summarise_traversal(data), embree_note, cfg, quick_flag))
+        trav = summarise_traversal(data)
+        svg = suite_svg(trav)
+        if svg and not plot:
+            log("no plot on standard output: give --out FILE to have it beside the page")
+        parts.append(section_bench(trav, embree_note, cfg, quick_flag,
+                                   plot.name if svg and plot else None))
+        triangles.update({d["scene"]: d["triangles"] for d in data})
     if "build" in only:
         builds = measure_builds(rows, raypack, embree, cache, cfg)
         parts.append(section_build(builds, embree is not None, cfg, quick_flag))
+        triangles.update({b["scene"]: b["triangles"] for b in builds})
+    if triangles:
+        parts.insert(0, section_scenes(rows, triangles))
     if embree:
         peers.append(f"{embree.version} (Debian's libembree-dev) through "
                      "../shared/peers/embree, built with `-O3 -march=native`")
@@ -709,6 +981,11 @@ def main():
     if out_path == "-":
         sys.stdout.write(text)
     else:
+        if svg:
+            tmp = plot.with_name(plot.name + f".tmp.{os.getpid()}")
+            tmp.write_text(svg)
+            tmp.replace(plot)
+            log(f"wrote {plot}")
         tmp = Path(out_path).with_name(Path(out_path).name + f".tmp.{os.getpid()}")
         tmp.write_text(text)
         tmp.replace(out_path)
