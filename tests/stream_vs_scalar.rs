@@ -473,7 +473,8 @@ fn camera_rays_and_trace_image_of_any_size() {
         let want: Vec<_> = rays.iter().map(|r| hit_bits(tree.intersect(r))).collect();
         common::each_isa(|| {
             for mode in Mode::ALL {
-                let got = trace_image(&tree, &view, w, h, mode).unwrap();
+                let (traced, got) = trace_image(&tree, &view, w, h, mode).unwrap();
+                assert_eq!(Ray::as_records(&traced), Ray::as_records(&rays));
                 let got: Vec<_> = got
                     .iter()
                     .map(|h| hit_bits(h.is_hit().then_some(*h)))

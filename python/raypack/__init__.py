@@ -107,15 +107,14 @@ def _to_f32(arr: np.ndarray, what: str) -> np.ndarray:
     return out
 
 
-def _float_rows(name: str, a: ArrayLike) -> Tuple[np.ndarray, Tuple[int, ...]]:
-    """``a`` as a C-contiguous float32 ``(n, 3)`` array, and its leading shape."""
+def _rows(name: str, a: ArrayLike) -> np.ndarray:
+    """``a`` as an array of real numbers of shape ``(..., 3)``, or a ``ValueError``."""
     arr = np.asarray(a)
     if arr.dtype.kind not in "fiu":
         raise ValueError(f"{name}: expected a float array, got dtype {arr.dtype}")
     if arr.ndim < 1 or arr.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (..., 3), got {arr.shape}")
-    lead = arr.shape[:-1]
-    return _to_f32(arr.reshape(-1, 3), f"{name}: ray"), lead
+    return arr
 
 
 def _limits(name: str, t: Union[float, ArrayLike], lead: Tuple[int, ...]) -> np.ndarray:
@@ -224,10 +223,7 @@ class Scene:
         return self._scene.warnings
 
     def _rays(self, origins, directions, t_min, t_max):
-        o, d = np.asarray(origins), np.asarray(directions)
-        for name, a in (("origins", o), ("directions", d)):
-            if a.ndim < 1 or a.shape[-1] != 3:
-                raise ValueError(f"{name}: expected shape (..., 3), got {a.shape}")
+        o, d = _rows("origins", origins), _rows("directions", directions)
         if o.shape != d.shape:
             # One origin for many directions (a camera), or one direction for many
             # origins (a sun): numpy's broadcasting.
@@ -235,8 +231,9 @@ class Scene:
                 o, d = np.broadcast_arrays(o, d)
             except ValueError:
                 raise ValueError(f"origins has shape {o.shape} and directions {d.shape}") from None
-        o, lead = _float_rows("origins", o)
-        d, _ = _float_rows("directions", d)
+        lead = o.shape[:-1]
+        o = _to_f32(o.reshape(-1, 3), "origins: ray")
+        d = _to_f32(d.reshape(-1, 3), "directions: ray")
         return o, d, _limits("t_min", t_min, lead), _limits("t_max", t_max, lead), lead
 
     def intersect(

@@ -26,7 +26,6 @@ use raypack::scene::{Camera, View};
 use raypack::simd::Isa;
 use raypack::studio::{self, MAX_GI_SPP, Source, Staged, StudioError};
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 create_exception!(
@@ -131,26 +130,23 @@ impl<'a> Rays<'a> {
         self.org.len()
     }
 
-    /// Finite origins and directions, `t_min` a number and `t_max` not NaN; the first
-    /// ray that breaks a rule is named. Run when [`Rays::fill`] found a bad chunk.
-    fn check(&self) -> PyResult<()> {
+    /// The error naming the first ray that breaks a rule of [`Rays::fill`]: finite
+    /// origins and directions, `t_min` a number and `t_max` not NaN. Called once a chunk
+    /// was found bad.
+    fn bad_ray(&self) -> PyErr {
         let bad = (0..self.len()).into_par_iter().find_first(|&i| {
             let finite = |v: &[f32; 3]| v.iter().all(|x| x.is_finite());
             let (t0, t1) = self.t(i);
             !(finite(&self.org[i]) && finite(&self.dir[i]) && t0.is_finite() && !t1.is_nan())
         });
-        match bad {
-            None => Ok(()),
-            Some(i) => {
-                let (t0, t1) = self.t(i);
-                Err(error(format!(
-                    "ray {i}: origin {:?}, direction {:?}, t_min {t0}, t_max {t1}: origins and \
-                     directions must be finite, t_min a finite number and t_max a number \
-                     (inf for no limit)",
-                    self.org[i], self.dir[i]
-                )))
-            }
-        }
+        let i = bad.expect("a chunk had a bad ray");
+        let (t0, t1) = self.t(i);
+        error(format!(
+            "ray {i}: origin {:?}, direction {:?}, t_min {t0}, t_max {t1}: origins and \
+             directions must be finite, t_min a finite number and t_max a number \
+             (inf for no limit)",
+            self.org[i], self.dir[i]
+        ))
     }
 
     #[inline]
@@ -160,7 +156,8 @@ impl<'a> Rays<'a> {
     }
 
     /// Rays `first..first + len` into `out`; false when one of them breaks a rule of
-    /// [`Rays::check`] (checked here, on rays already in cache, not in a pass of its own).
+    /// [`Rays::bad_ray`] (checked here, on rays already in cache, not in a pass of its
+    /// own).
     fn fill(&self, first: usize, out: &mut Vec<Ray>, len: usize) -> bool {
         out.clear();
         out.extend((first..first + len).map(|i| {
@@ -235,12 +232,13 @@ impl HitArrays {
     }
 
     /// The answers for `n` rays, chunk by chunk: `trace(first, hits, rays)` fills a
-    /// chunk's hits and its rays (for the normals), or returns false to stop.
+    /// chunk's hits and its rays (for the normals), or fails on a bad chunk, which
+    /// stops the work.
     fn of(
         scene: &Scene,
         n: usize,
-        trace: impl Fn(usize, &mut [Hit], &mut Vec<Ray>) -> bool + Sync,
-    ) -> Option<HitArrays> {
+        trace: impl Fn(usize, &mut [Hit], &mut Vec<Ray>) -> Result<(), BadChunk> + Sync,
+    ) -> Result<HitArrays, BadChunk> {
         let mut out = HitArrays {
             t: vec![0.0; n],
             prim: vec![0; n],
@@ -249,7 +247,6 @@ impl HitArrays {
             normal: vec![0.0; 3 * n],
         };
         let b = BATCH_RAYS;
-        let stopped = AtomicBool::new(false);
         out.t
             .par_chunks_mut(b)
             .zip(out.prim.par_chunks_mut(b))
@@ -257,18 +254,16 @@ impl HitArrays {
             .zip(out.v.par_chunks_mut(b))
             .zip(out.normal.par_chunks_mut(3 * b))
             .enumerate()
-            .for_each_init(
+            .try_for_each_init(
                 || (Vec::with_capacity(b), vec![Hit::MISS; b]),
                 |(rays, hits), (chunk, ((((t, prim), u), v), normal))| {
                     let hits = &mut hits[..t.len()];
-                    if stopped.load(Ordering::Relaxed) || !trace(chunk * b, hits, rays) {
-                        stopped.store(true, Ordering::Relaxed);
-                        return;
-                    }
+                    trace(chunk * b, hits, rays)?;
                     HitArrays::write(scene, hits, rays, (t, prim, u, v, normal));
+                    Ok(())
                 },
-            );
-        (!stopped.into_inner()).then_some(out)
+            )?;
+        Ok(out)
     }
 
     fn into_py(self, py: Python<'_>) -> PyResult<HitTuple<'_>> {
@@ -394,17 +389,14 @@ impl Scene {
         let rays = Rays::new(&origins, &directions, &t_min, &t_max)?;
         let out = on_pool(py, threads, || {
             HitArrays::of(self, rays.len(), |first, hits, buf| {
-                if !rays.fill(first, buf, hits.len()) {
-                    return false;
-                }
-                let mode = mode.unwrap_or_else(|| trace::auto_mode(buf, self.scale));
+                let mode = self.chunk(&rays, mode, first, hits.len(), buf)?;
                 trace::intersect_into(&self.tree, buf, trace::Order::Any, mode, hits);
-                true
+                Ok(())
             })
         })?;
         match out {
-            Some(out) => out.into_py(py),
-            None => Err(rays.check().expect_err("a chunk had a bad ray")),
+            Ok(out) => out.into_py(py),
+            Err(BadChunk) => Err(rays.bad_ray()),
         }
     }
 
@@ -424,25 +416,22 @@ impl Scene {
         let rays = Rays::new(&origins, &directions, &t_min, &t_max)?;
         let out = on_pool(py, threads, || {
             let mut out = vec![false; rays.len()];
-            let ok = out
-                .par_chunks_mut(BATCH_RAYS)
+            out.par_chunks_mut(BATCH_RAYS)
                 .enumerate()
                 .try_for_each_init(
                     || Vec::with_capacity(BATCH_RAYS),
                     |buf, (chunk, occluded)| {
-                        if !rays.fill(chunk * BATCH_RAYS, buf, occluded.len()) {
-                            return Err(());
-                        }
-                        let mode = mode.unwrap_or_else(|| trace::auto_mode(buf, self.scale));
+                        let first = chunk * BATCH_RAYS;
+                        let mode = self.chunk(&rays, mode, first, occluded.len(), buf)?;
                         trace::occluded_into(&self.tree, buf, trace::Order::Any, mode, occluded);
                         Ok(())
                     },
-                );
-            ok.map(|()| out)
+                )
+                .map(|()| out)
         })?;
         match out {
             Ok(out) => Ok(out.into_pyarray(py)),
-            Err(()) => Err(rays.check().expect_err("a chunk had a bad ray")),
+            Err(BadChunk) => Err(rays.bad_ray()),
         }
     }
 
@@ -497,13 +486,12 @@ impl Scene {
         let mode = parse_mode(mode)?.unwrap_or_else(Mode::native_packet);
         let view = view_of(eye, target, up, vfov);
         let out = on_pool(py, threads, || {
-            let hits = trace::trace_image(&self.tree, &view, width, height, mode)?;
-            let rays = standard::camera_rays(&view, width, height)?;
+            let (rays, hits) = trace::trace_image(&self.tree, &view, width, height, mode)?;
             let out = HitArrays::of(self, hits.len(), |first, out, buf| {
                 out.copy_from_slice(&hits[first..first + out.len()]);
                 buf.clear();
                 buf.extend_from_slice(&rays[first..first + out.len()]);
-                true
+                Ok(())
             });
             Ok::<_, raypack::rayset::RaySetError>(out.expect("nothing stops an image"))
         })?
@@ -512,7 +500,27 @@ impl Scene {
     }
 }
 
+/// A chunk of rays with a bad value: the work stops and [`Rays::bad_ray`] names it.
+#[derive(Debug)]
+struct BadChunk;
+
 impl Scene {
+    /// Rays `first..first + len` into `buf`, and the mode they are traced in: `mode`,
+    /// or for `auto` (`None`) the one [`trace::auto_mode`] picks for them.
+    fn chunk(
+        &self,
+        rays: &Rays,
+        mode: Option<Mode>,
+        first: usize,
+        len: usize,
+        buf: &mut Vec<Ray>,
+    ) -> Result<Mode, BadChunk> {
+        if !rays.fill(first, buf, len) {
+            return Err(BadChunk);
+        }
+        Ok(mode.unwrap_or_else(|| trace::auto_mode(buf, self.scale)))
+    }
+
     /// The geometric normal of a hit on `prim` at `t` along `ray`.
     #[inline]
     fn normal(&self, prim: u32, ray: &Ray, t: f32) -> Vec3 {

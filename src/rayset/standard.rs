@@ -145,18 +145,8 @@ pub fn primary(view: &View, width: u32, height: u32) -> Result<RaySet, RaySetErr
             ),
         });
     }
-    let camera = Pinhole::new(view, width, height)?;
-    let rays = (0..width as usize * height as usize)
-        .map(|i| {
-            let (x, y) = packet_pixel(i, width);
-            camera.ray(x, y)
-        })
-        .collect();
-    Ok(RaySet {
-        width,
-        height,
-        rays,
-    })
+    // At whole tiles the padded set is the image itself.
+    padded_image_set(view, width, height)
 }
 
 /// The camera's rays of RAYS.md at any `width x height` (at most [`MAX_PIXELS`]), in

@@ -323,26 +323,29 @@ pub fn trace_hits<A: Accel + ?Sized>(accel: &A, set: &RaySet, mode: Mode) -> Vec
     hits
 }
 
-/// Closest hits of the camera rays of `view` at any `width x height`, in row-major
-/// order (pixel `(x, y)` at `y * width + x`), each bit for bit the hit of
-/// [`super::standard::camera_rays`]'s ray: traced in `mode` as an image set, so packets
-/// and tiles take pixel blocks. A size that is not a multiple of [`super::TILE`] is traced
-/// padded to the next multiple ([`super::standard::padded_image_set`]), its extra
-/// rays dropped.
+/// The camera rays of `view` at any `width x height` and their closest hits, in
+/// row-major order (pixel `(x, y)` at `y * width + x`): the rays bit for bit
+/// [`super::standard::camera_rays`]'s, each hit that of [`Accel::intersect`], traced
+/// in `mode` as an image set, so packets and tiles take pixel blocks. A size that is not
+/// a multiple of [`super::TILE`] is traced padded to the next multiple
+/// ([`super::standard::padded_image_set`]), its extra rays dropped.
 pub fn trace_image<A: Accel + ?Sized>(
     accel: &A,
     view: &crate::scene::View,
     width: u32,
     height: u32,
     mode: Mode,
-) -> Result<Vec<Hit>, super::RaySetError> {
+) -> Result<(Vec<Ray>, Vec<Hit>), super::RaySetError> {
     let set = super::standard::padded_image_set(view, width, height)?;
     let hits = trace_hits(accel, &set, mode);
     Ok((0..height)
         .into_par_iter()
         .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
-        .map(|(x, y)| hits[super::pixel_packet_index(x, y, set.width)])
-        .collect())
+        .map(|(x, y)| {
+            let i = super::pixel_packet_index(x, y, set.width);
+            (set.rays[i], hits[i])
+        })
+        .unzip())
 }
 
 /// Traces one chunk (lying in `order`) and folds the answers into a checksum (the timed
