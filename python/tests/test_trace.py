@@ -5,6 +5,9 @@ an independent ray-triangle test written here in float64."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -209,3 +212,41 @@ def test_threads_calling_at_once_get_their_own_answers():
 
 def test_isa_names_the_kernels_in_use():
     assert raypack.isa() in ("sse", "avx2", "avx512")
+
+
+def test_every_instruction_set_gives_the_same_bits(tmp_path):
+    """The kernels of each set this CPU runs (RAYPACK_ISA, read at import, so one
+    interpreter per set) give the bits of the set in use here."""
+    scene = raypack.Scene.load(KNOT)
+    lo, hi = scene.bounds
+    o, d = rays_at(np.random.default_rng(8), 20000, lo, hi)
+    np.save(tmp_path / "o.npy", o)
+    np.save(tmp_path / "d.npy", d)
+    code = (
+        "import sys, numpy as np, raypack\n"
+        f"s = raypack.Scene.load({KNOT!r})\n"
+        f"o, d = np.load({str(tmp_path / 'o.npy')!r}), np.load({str(tmp_path / 'd.npy')!r})\n"
+        "for mode in ('stream', 'packet4', 'packet8', 'packet16', 'tile64'):\n"
+        "    h = s.intersect(o, d, mode=mode)\n"
+        "    np.savez(sys.argv[1] + mode, *h, occ=s.occluded(o, d, 0.0, 1.0, mode=mode))\n"
+        "print(raypack.isa())\n"
+    )
+    want = scene.intersect(o, d, mode="scalar")
+    want_occ = scene.occluded(o, d, 0.0, 1.0, mode="scalar")
+    ran = []
+    for isa in ("sse", "avx2", "avx512"):
+        out = subprocess.run(
+            [sys.executable, "-c", code, str(tmp_path / isa)],
+            env={**os.environ, "RAYPACK_ISA": isa}, capture_output=True, text=True,
+        )
+        if out.returncode != 0:
+            # Refused only because this CPU lacks the set, and said so.
+            assert "RAYPACK_ISA" in out.stderr and isa != "sse", out.stderr
+            continue
+        assert out.stdout.strip() == isa
+        ran.append(isa)
+        for mode in ("stream", "packet4", "packet8", "packet16", "tile64"):
+            got = np.load(str(tmp_path / isa) + mode + ".npz")
+            assert same(tuple(got[f"arr_{k}"] for k in range(5)), want), (isa, mode)
+            assert np.array_equal(got["occ"], want_occ), (isa, mode)
+    assert "sse" in ran and raypack.isa() in ran
