@@ -3,7 +3,8 @@
 //! the energy each bounce adds. Both integrators where the closed form applies to both.
 //!
 //! Every Monte Carlo check measures its own noise: `estimate` returns the mean of `n`
-//! independent samples and its standard error `sqrt(var / n)` from the samples' variance,
+//! samples and its standard error `sqrt(var / n)` from the samples' variance (exact for
+//! independent samples; for the Sobol sampler, the default, an upper bound),
 //! and the check asserts agreement within `Z` standard errors (plus 1e-4 relative, the
 //! f32 rounding of the closed forms); it also asserts that the standard error is small
 //! against the expected value, so the check cannot pass by being noisy.
@@ -15,20 +16,26 @@ use raypack::render::bsdf::fresnel_dielectric;
 use raypack::render::gi::{GiCounts, GiScene, Integrator};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
-use raypack::render::sample::pixel_rng;
+use raypack::render::sample::{Sampler, SamplerKind};
 use raypack::scene::{Geometry, Light, Material, Scene};
 
 /// Standard errors allowed between an estimate and its closed form. At 4.5 a correct
 /// integrator fails one check per 150,000 or so: never in practice, over the ~40 checks.
 const Z: f32 = 4.5;
 
-/// Mean and standard error (per channel) of `n` samples of `integrator` along `ray`.
+/// Mean and standard error (per channel) of `n` samples of `integrator` along `ray`,
+/// drawn by its sampler kind: independent samples from `n` pixels, or the first `n`
+/// points of one pixel's Sobol sequence.
 fn estimate(integrator: &dyn Integrator, ray: &Ray, n: u32, seed: u64) -> (Vec3, Vec3) {
     let (mut sum, mut sum2) = ([0f64; 3], [0f64; 3]);
     let mut counts = GiCounts::default();
+    let kind = integrator.gi_scene().sampler;
     for i in 0..n {
-        let mut rng = pixel_rng(seed, i, 0, 0);
-        let l = integrator.radiance(ray, &mut rng, &mut counts);
+        let mut sampler = match kind {
+            SamplerKind::Independent => Sampler::new(kind, seed, i, 0, 0),
+            SamplerKind::Sobol => Sampler::new(kind, seed, 0, 0, i),
+        };
+        let l = integrator.radiance(ray, &mut sampler, &mut counts);
         for c in 0..3 {
             sum[c] += l[c] as f64;
             sum2[c] += (l[c] as f64).powi(2);
@@ -218,14 +225,21 @@ fn furnace(a: f32, l: f32) -> (Scene, Ray) {
 
 #[test]
 fn path_tracer_white_furnace_converges_to_the_emitted_radiance_for_any_albedo() {
-    for a in [0.0, 0.3, 0.6, 0.9] {
-        let (s, ray) = furnace(a, 2.0);
-        let accel = KdTree::build(&s.geometry);
-        let pt = PathTracer {
-            scene: GiScene::new(&s, &accel, Vec3::ZERO, None),
-        };
-        let e = estimate(&pt, &ray, 40_000, 1);
-        assert_close(&format!("path furnace a={a}"), e, Vec3::splat(2.0), 0.01);
+    for kind in [SamplerKind::Sobol, SamplerKind::Independent] {
+        for a in [0.0, 0.3, 0.6, 0.9] {
+            let (s, ray) = furnace(a, 2.0);
+            let accel = KdTree::build(&s.geometry);
+            let mut scene = GiScene::new(&s, &accel, Vec3::ZERO, None);
+            scene.sampler = kind;
+            let pt = PathTracer { scene };
+            let e = estimate(&pt, &ray, 40_000, 1);
+            assert_close(
+                &format!("path furnace a={a}, {kind:?}"),
+                e,
+                Vec3::splat(2.0),
+                0.01,
+            );
+        }
     }
 }
 
@@ -576,9 +590,10 @@ fn caustics_through_a_glass_slab_agree_between_path_and_photon() {
         for y in 0..16 {
             for x in 0..16 {
                 for k in 0..spp {
-                    let mut rng = pixel_rng(9, x, y, k);
-                    let ray = frame.ray(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
-                    let l = integrator.radiance(&ray, &mut rng, &mut counts);
+                    let mut sampler = Sampler::new(SamplerKind::Independent, 9, x, y, k);
+                    let (jx, jy) = sampler.next_2d();
+                    let ray = frame.ray(x as f32 + jx, y as f32 + jy);
+                    let l = integrator.radiance(&ray, &mut sampler, &mut counts);
                     let v = (l.x + l.y + l.z) as f64 / 3.0;
                     sum += v;
                     sum2 += v * v;

@@ -10,7 +10,7 @@ use raypack::accel::kdtree::KdTree;
 use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
-use raypack::render::sample::pixel_rng;
+use raypack::render::sample::{Sampler, SamplerKind};
 use raypack::scene::{Camera, Scene, obj};
 
 /// The Cornell box as `raypack render cornell_box` loads it ([`Scene::from_obj`], mapped
@@ -72,9 +72,11 @@ fn render_blocks(scene: &Scene, integrator: &dyn Integrator, spp: u32, block: u3
         for x in 0..across * block {
             let b = ((y / block) * across + x / block) as usize;
             for k in 0..spp {
-                let mut rng = pixel_rng(scene.settings.seed, x, y, k);
-                let ray = frame.ray(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
-                let l = integrator.radiance(&ray, &mut rng, &mut counts);
+                let mut sampler =
+                    Sampler::new(SamplerKind::Independent, scene.settings.seed, x, y, k);
+                let (jx, jy) = sampler.next_2d();
+                let ray = frame.ray(x as f32 + jx, y as f32 + jy);
+                let l = integrator.radiance(&ray, &mut sampler, &mut counts);
                 for c in 0..3 {
                     out.sum[b][c] += l[c] as f64;
                     out.sum2[b][c] += (l[c] as f64).powi(2);
@@ -187,19 +189,26 @@ fn path_and_photon_block_averages_agree_on_the_cornell_box() {
 }
 
 /// The same image, bit for bit, on 1 and 3 threads and with camera rays traced in
-/// packets or one by one, for both integrators.
+/// packets or one by one, for both integrators and both samplers.
 #[test]
 fn gi_images_do_not_depend_on_the_thread_count() {
     require_scenes!();
     let scene = cornell(24, 20);
     let accel = KdTree::build(&scene.geometry);
+    for kind in [SamplerKind::Sobol, SamplerKind::Independent] {
+        gi_images_agree_across_threads_and_modes(&scene, &accel, kind);
+    }
+}
+
+fn gi_images_agree_across_threads_and_modes(scene: &Scene, accel: &KdTree, kind: SamplerKind) {
     let render = |threads: usize, photon: bool, mode: Mode| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
         pool.install(|| {
-            let gi = GiScene::new(&scene, &accel, Vec3::ZERO, None);
+            let mut gi = GiScene::new(scene, accel, Vec3::ZERO, None);
+            gi.sampler = kind;
             if photon {
                 let pm = PhotonMapper::new(
                     gi,
@@ -209,9 +218,9 @@ fn gi_images_do_not_depend_on_the_thread_count() {
                         ..PhotonSettings::default()
                     },
                 );
-                render_gi(&scene, &pm, 2, mode, &|| ())
+                render_gi(scene, &pm, 2, mode, &|| ())
             } else {
-                render_gi(&scene, &PathTracer { scene: gi }, 5, mode, &|| ())
+                render_gi(scene, &PathTracer { scene: gi }, 5, mode, &|| ())
             }
         })
     };
@@ -225,12 +234,16 @@ fn gi_images_do_not_depend_on_the_thread_count() {
                 .map(|p| p.to_array().map(f32::to_bits))
                 .collect()
         };
-        assert_eq!(bits(&one.film), bits(&three.film), "photon: {photon}");
+        assert_eq!(
+            bits(&one.film),
+            bits(&three.film),
+            "photon: {photon}, {kind:?}"
+        );
         assert_eq!(one.counts, three.counts);
         assert_eq!(
             bits(&one.film),
             bits(&scalar.film),
-            "packets, photon: {photon}"
+            "packets, photon: {photon}, {kind:?}"
         );
         assert_eq!(
             (scalar.counts.camera_packets, scalar.counts.shadow_packets),
@@ -247,7 +260,7 @@ fn gi_images_do_not_depend_on_the_thread_count() {
             assert_eq!(
                 bits(&packed.film),
                 bits(&scalar.film),
-                "{mode}, photon: {photon}"
+                "{mode}, photon: {photon}, {kind:?}"
             );
         }
         assert!(one.film.pixels.iter().any(|p| p.max_element() > 0.0));

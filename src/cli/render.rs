@@ -29,6 +29,7 @@ use raypack::render::film::{ImageFormat, WriteOptions};
 use raypack::render::gi::{GiCounts, GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
+use raypack::render::sample::SamplerKind;
 use raypack::render::{Film, RayCounts, render, tiles};
 use raypack::scene::{AntiAlias, Camera, Scene};
 use raypack::studio::{self, MAX_GI_SPP, Source, Staged};
@@ -91,6 +92,10 @@ pub struct Args {
     /// With path and photon, --spp takes any count.
     #[arg(long, value_enum, default_value_t = IntegratorArg::Whitted)]
     pub integrator: IntegratorArg,
+    /// Path and photon: how each camera sample draws its random numbers (Owen-scrambled
+    /// Sobol points, or independent uniforms). Refused with the Whitted tracer.
+    #[arg(long, value_enum)]
+    pub sampler: Option<SamplerArg>,
     /// Path: most scattering events per path (default: Russian roulette
     /// alone ends paths). Refused with the other integrators.
     #[arg(long)]
@@ -108,6 +113,24 @@ pub struct Args {
     /// value or R,G,B (default: the scene's background).
     #[arg(long, value_delimiter = ',', num_args = 1..=3)]
     pub sky: Option<Vec<f32>>,
+}
+
+/// `--sampler`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SamplerArg {
+    /// Owen-scrambled Sobol points (the default).
+    Sobol,
+    /// Independent uniforms.
+    Independent,
+}
+
+impl SamplerArg {
+    fn kind(self) -> SamplerKind {
+        match self {
+            SamplerArg::Sobol => SamplerKind::Sobol,
+            SamplerArg::Independent => SamplerKind::Independent,
+        }
+    }
 }
 
 /// `--integrator`.
@@ -191,6 +214,9 @@ struct Report<'a> {
     build_seconds: f64,
     render_seconds: f64,
     integrator: &'a str,
+    /// The global-illumination integrators' sampler (`sobol` or `independent`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sampler: Option<&'static str>,
     /// Rays by kind (the kinds of the integrator), and `total`.
     rays: BTreeMap<&'static str, u64>,
     mrays_per_second: f64,
@@ -220,6 +246,11 @@ impl<'a> Report<'a> {
             build_seconds,
             render_seconds,
             integrator,
+            sampler: (args.integrator != IntegratorArg::Whitted).then(|| {
+                args.sampler
+                    .map_or(SamplerKind::default(), SamplerArg::kind)
+                    .name()
+            }),
             rays,
             mrays_per_second: total as f64 / render_seconds.max(1e-9) / 1e6,
         }
@@ -246,6 +277,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Err(BadInput(
             "--max-bounces applies to --integrator path only (photon paths end by Russian \
              roulette, the Whitted tracer by the scene's depth)"
+                .into(),
+        )
+        .into());
+    }
+    if args.sampler.is_some() && args.integrator == IntegratorArg::Whitted {
+        return Err(BadInput(
+            "--sampler applies to --integrator path and photon (the Whitted tracer keeps its \
+             stratified samples)"
                 .into(),
         )
         .into());
@@ -400,7 +439,10 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
     let start = Instant::now();
     let accel = pool.install(|| KdTree::build(&scene.geometry));
     let build_seconds = start.elapsed().as_secs_f64();
-    let gi = GiScene::new(&scene, &accel, environment, args.max_bounces);
+    let mut gi = GiScene::new(&scene, &accel, environment, args.max_bounces);
+    if let Some(sampler) = args.sampler {
+        gi.sampler = sampler.kind();
+    }
     if gi.lights.photon_power() <= 0.0 && gi.lights.is_empty() {
         eprintln!(
             "raypack: warning: {}: nothing emits light (no emissive material, light or sky): the image is black; --sky 1 lights it by a uniform white sky",

@@ -27,7 +27,7 @@
 //! one-sample balance heuristic over lobes); a delta lobe's by its weight over its
 //! probability.
 
-use super::sample::{Onb, Pcg32, cosine_hemisphere};
+use super::sample::{Onb, cosine_hemisphere};
 use super::shade::{absorption_coefficient, reflect, refract};
 use crate::scene::Material;
 use glam::Vec3;
@@ -185,10 +185,10 @@ impl Bsdf {
         pdf
     }
 
-    /// Draws a direction (three uniforms from `rng`, always). `None`: the path is
+    /// Draws a direction from three uniforms: `u[0]` picks the lobe, `u[1..]` the
+    /// direction ([`super::sample::Sampler::next_choice_2d`]). `None`: the path is
     /// absorbed (a black material, or a Phong direction below the surface).
-    pub fn sample(&self, wo: Vec3, rng: &mut Pcg32) -> Option<BsdfSample> {
-        let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+    pub fn sample(&self, wo: Vec3, [u0, u1, u2]: [f32; 3]) -> Option<BsdfSample> {
         let mut acc = 0.0;
         let mut lobe = LOBES;
         for (j, &p) in self.prob.iter().enumerate() {
@@ -207,8 +207,7 @@ impl Bsdf {
 
     /// Like [`Bsdf::sample`], restricted to the non-delta lobes (the photon map's final
     /// gather). `None` also when there is no such lobe.
-    pub fn sample_smooth(&self, wo: Vec3, rng: &mut Pcg32) -> Option<BsdfSample> {
-        let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+    pub fn sample_smooth(&self, wo: Vec3, [u0, u1, u2]: [f32; 3]) -> Option<BsdfSample> {
         let total: f32 = self.prob[..MIRROR].iter().sum();
         if total <= 0.0 {
             return None;
@@ -235,8 +234,7 @@ impl Bsdf {
     }
 
     /// Like [`Bsdf::sample`], restricted to the delta lobes (mirror and dielectric).
-    pub fn sample_delta(&self, wo: Vec3, rng: &mut Pcg32) -> Option<BsdfSample> {
-        let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+    pub fn sample_delta(&self, wo: Vec3, [u0, u1, u2]: [f32; 3]) -> Option<BsdfSample> {
         let (pm, pg) = (self.prob[MIRROR], self.prob[GLASS]);
         let total = pm + pg;
         if total <= 0.0 {
@@ -324,6 +322,7 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Pcg32;
 
     fn material(diffuse: f32, specular: f32, reflection: f32, glossiness: f32) -> Material {
         Material {
@@ -335,6 +334,10 @@ mod tests {
             glossiness,
             ..Material::default()
         }
+    }
+
+    fn uniforms(rng: &mut Pcg32) -> [f32; 3] {
+        [rng.next_f32(), rng.next_f32(), rng.next_f32()]
     }
 
     /// The directional albedo `E[weight]` of a BSDF never exceeds 1 in any channel: a
@@ -358,7 +361,7 @@ mod tests {
                 let count = 200_000;
                 let (mut sum, mut sum2) = (Vec3::ZERO, Vec3::ZERO);
                 for _ in 0..count {
-                    if let Some(s) = bsdf.sample(wo, &mut rng) {
+                    if let Some(s) = bsdf.sample(wo, uniforms(&mut rng)) {
                         sum += s.weight;
                         sum2 += s.weight * s.weight;
                     }
@@ -387,7 +390,7 @@ mod tests {
         let bsdf = Bsdf::new(&m, m.color, Vec3::Z, true);
         let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
         for _ in 0..1000 {
-            if let Some(s) = bsdf.sample(wo, &mut rng) {
+            if let Some(s) = bsdf.sample(wo, uniforms(&mut rng)) {
                 let expect = bsdf.eval(wo, s.wi) * s.wi.dot(Vec3::Z) / bsdf.pdf(wo, s.wi);
                 assert!((s.weight - expect).abs().max_element() < 1e-4);
                 assert_eq!(s.pdf, bsdf.pdf(wo, s.wi));

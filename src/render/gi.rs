@@ -3,15 +3,15 @@
 //! pixel. Sample `k` of every pixel of a tile is one batch handed to an [`Integrator`],
 //! which may trace its paths one by one or as a wavefront.
 //!
-//! Invariants: sample `k` of pixel `(x, y)` draws only from [`pixel_rng`]`(seed, x, y, k)`,
-//! so the image is the same for any number of threads and any tile order; ray counts are
-//! summed per tile in tile order.
+//! Invariants: sample `k` of pixel `(x, y)` draws only from its own [`Sampler`]
+//! (`Sampler::new(kind, seed, x, y, k)`), so the image is the same for any number of
+//! threads and any tile order; ray counts are summed per tile in tile order.
 
 use super::batch::{intersect_rays, intersect_unrelated};
 use super::bsdf::Bsdf;
 use super::film::Film;
 use super::lights::Lights;
-use super::sample::{Pcg32, pixel_rng};
+use super::sample::{Sampler, SamplerKind};
 use super::shade::{Shader, transmission};
 use super::tiles::tiles;
 use crate::accel::Accel;
@@ -70,34 +70,34 @@ pub trait Integrator: Sync {
         &self,
         ray: &Ray,
         first: Option<Hit>,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         counts: &mut GiCounts,
     ) -> Vec3;
 
     /// [`Integrator::radiance_traced`] for many camera rays at once, `first[i]` the
     /// closest hit of ray `i` ([`Hit::MISS`] for none, as the stream queries write it)
-    /// and `rngs[i]` its generator, the same values bit for bit; `mode` says how rays
+    /// and `samplers[i]` its sampler, the same values bit for bit; `mode` says how rays
     /// traced together go (one by one in scalar mode). The default takes the rays one
     /// at a time.
     fn radiance_batch(
         &self,
         rays: &[Ray],
         first: &[Hit],
-        rngs: &mut [Pcg32],
+        samplers: &mut [Sampler],
         _mode: Mode,
         counts: &mut GiCounts,
     ) -> Vec<Vec3> {
         rays.iter()
             .zip(first)
-            .zip(rngs)
-            .map(|((ray, h), rng)| self.radiance_traced(ray, h.is_hit().then_some(*h), rng, counts))
+            .zip(samplers)
+            .map(|((ray, h), s)| self.radiance_traced(ray, h.is_hit().then_some(*h), s, counts))
             .collect()
     }
 
     /// One sample of the radiance along camera ray `ray` (already counted).
-    fn radiance(&self, ray: &Ray, rng: &mut Pcg32, counts: &mut GiCounts) -> Vec3 {
+    fn radiance(&self, ray: &Ray, sampler: &mut Sampler, counts: &mut GiCounts) -> Vec3 {
         let first = self.gi_scene().shader.accel.intersect(ray);
-        self.radiance_traced(ray, first, rng, counts)
+        self.radiance_traced(ray, first, sampler, counts)
     }
 }
 
@@ -108,6 +108,8 @@ pub struct GiScene<'a> {
     pub lights: Lights,
     /// Scattering events per path; `None` leaves paths to Russian roulette alone.
     pub max_bounces: Option<u32>,
+    /// How [`render_gi`] draws each camera sample's numbers (Sobol unless set).
+    pub sampler: SamplerKind,
 }
 
 /// A hit prepared for the global-illumination integrators.
@@ -158,6 +160,7 @@ impl<'a> GiScene<'a> {
             shader: Shader::new(scene, accel),
             lights: Lights::new(scene, environment),
             max_bounces,
+            sampler: SamplerKind::default(),
         }
     }
 
@@ -240,16 +243,17 @@ impl<'a> GiScene<'a> {
 
     /// Next-event estimation at `h` for outgoing `wo`: one light sample, its shadow ray,
     /// `f cos Li / pdf` weighted by the power heuristic against BSDF sampling when `mis`
-    /// (the photon map takes light samples alone: `mis = false`). Draws three uniforms.
+    /// (the photon map takes light samples alone: `mis = false`). Draws a choice and a
+    /// 2D point ([`Sampler::next_choice_2d`]).
     pub fn direct(
         &self,
         h: &GiHit,
         wo: Vec3,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         mis: bool,
         counts: &mut GiCounts,
     ) -> Vec3 {
-        match self.direct_query(h, wo, rng, mis) {
+        match self.direct_query(h, wo, sampler, mis) {
             Some(q) => {
                 counts.shadow += 1;
                 if self.shader.accel.occluded(&q.ray) {
@@ -264,16 +268,16 @@ impl<'a> GiScene<'a> {
 
     /// The light sample of [`GiScene::direct`] without its shadow ray traced: the ray,
     /// and what the sample brings when the ray is unoccluded. `None` when it brings
-    /// nothing whatever the ray meets. Draws three uniforms, as `direct` does, so a
+    /// nothing whatever the ray meets. Draws what `direct` draws, so a
     /// caller that traces the shadow rays of many paths together takes the same samples.
     pub fn direct_query(
         &self,
         h: &GiHit,
         wo: Vec3,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         mis: bool,
     ) -> Option<ShadowQuery> {
-        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let u = sampler.next_choice_2d();
         if !h.bsdf.has_smooth() {
             return None;
         }
@@ -303,6 +307,52 @@ impl<'a> GiScene<'a> {
     }
 }
 
+impl GiScene<'_> {
+    /// Next-event estimation of the environment at `h` for outgoing `wo`: a direction
+    /// from [`Lights::sample_environment`], its shadow ray to infinity, and
+    /// `f cos L / pdf` weighted by the power heuristic against BSDF sampling. Draws a 2D
+    /// point when the scene has an environment ([`Lights::has_environment`]), nothing
+    /// otherwise; `None` when the sample brings nothing whatever the ray meets.
+    pub fn environment_query(
+        &self,
+        h: &GiHit,
+        wo: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<ShadowQuery> {
+        if !self.lights.has_environment() {
+            return None;
+        }
+        let u = sampler.next_2d();
+        if !h.bsdf.has_smooth() {
+            return None;
+        }
+        let (wi, pdf) = self.lights.sample_environment(h.n, u);
+        let f = h.bsdf.eval(wo, wi) * wi.dot(h.n).max(0.0);
+        if f == Vec3::ZERO || !(pdf > 0.0) {
+            return None;
+        }
+        let w = super::bsdf::power_heuristic(pdf, h.bsdf.pdf(wo, wi));
+        Some(ShadowQuery {
+            ray: Ray::new(h.p + h.n * h.epsilon, wi, 0.0, f32::INFINITY),
+            value: f * self.lights.environment * (w / pdf),
+            point_light: false,
+        })
+    }
+
+    /// The weight of environment light found by a BSDF sample of density `bsdf_pdf`
+    /// (`None` after a delta lobe or for a camera ray) leaving a surface of normal `n`
+    /// along `wi`: the power heuristic against [`GiScene::environment_query`], or 1 when
+    /// that strategy could not have found it.
+    pub fn environment_weight(&self, bsdf_pdf: Option<f32>, n: Vec3, wi: Vec3) -> f32 {
+        match bsdf_pdf {
+            Some(pdf) if self.lights.has_environment() => {
+                super::bsdf::power_heuristic(pdf, self.lights.environment_pdf(n, wi))
+            }
+            _ => 1.0,
+        }
+    }
+}
+
 /// A light sample's shadow ray and the radiance it brings if nothing blocks it.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowQuery {
@@ -314,9 +364,9 @@ pub struct ShadowQuery {
 }
 
 /// Russian roulette from the fourth vertex on: a path goes on with probability
-/// `min(0.95, max channel of throughput)` and is reweighted; draws one uniform always.
-pub fn survives(vertex: u32, throughput: &mut Vec3, rng: &mut Pcg32) -> bool {
-    let u = rng.next_f32();
+/// `min(0.95, max channel of throughput)` and is reweighted; draws one value always.
+pub fn survives(vertex: u32, throughput: &mut Vec3, sampler: &mut Sampler) -> bool {
+    let u = sampler.next_1d();
     if vertex < 3 {
         return true;
     }
@@ -336,7 +386,8 @@ pub struct GiRendered {
 }
 
 /// Renders `spp` samples per pixel of `scene`'s camera at its settings' size through
-/// `integrator` on the current rayon pool; `progress` is called once per finished tile.
+/// `integrator` on the current rayon pool, drawing from the integrator's sampler kind
+/// ([`GiScene::sampler`]); `progress` is called once per finished tile.
 /// In a packet mode the camera rays of a packet width of neighbouring pixels are traced as
 /// one packet, and the integrator sends its other rays as it says
 /// ([`Integrator::radiance_batch`]); the image is that of [`Mode::Scalar`], bit for bit.
@@ -351,6 +402,7 @@ pub fn render_gi(
     let (width, height) = (scene.settings.width, scene.settings.height);
     let frame = scene.camera.frame(width, height);
     let seed = scene.settings.seed;
+    let kind = integrator.gi_scene().sampler;
     let spp = spp.max(1);
     let tiles = tiles(width, height);
     let done: Vec<(Vec<Vec3>, GiCounts)> = tiles
@@ -368,16 +420,16 @@ pub fn render_gi(
             let n = pixels.len();
             let mut sums = vec![Vec3::ZERO; n];
             let mut rays = Vec::with_capacity(n);
-            let mut rngs = Vec::with_capacity(n);
+            let mut samplers = Vec::with_capacity(n);
             let mut hits = vec![Hit::MISS; n];
             for k in 0..spp {
                 rays.clear();
-                rngs.clear();
+                samplers.clear();
                 for &(x, y) in &pixels {
-                    let mut rng = pixel_rng(seed, x, y, k);
-                    let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                    let mut sampler = Sampler::new(kind, seed, x, y, k);
+                    let (jx, jy) = sampler.next_2d();
                     rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
-                    rngs.push(rng);
+                    samplers.push(sampler);
                 }
                 counts.camera += n as u64;
                 if packet == Mode::Scalar {
@@ -389,7 +441,7 @@ pub fn render_gi(
                         out.copy_from_slice(&intersect_rays(accel, packet, group)[..group.len()]);
                     }
                 }
-                let l = integrator.radiance_batch(&rays, &hits, &mut rngs, mode, &mut counts);
+                let l = integrator.radiance_batch(&rays, &hits, &mut samplers, mode, &mut counts);
                 for (sum, l) in sums.iter_mut().zip(l) {
                     // A NaN or infinite sample would poison the pixel: drop it.
                     if l.is_finite() {

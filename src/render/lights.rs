@@ -5,17 +5,19 @@
 //! Lambertian, toward the winding normal), its rectangular area lights (two-sided
 //! Lambertian emitters of radiance `color`, invisible to rays, as in the Whitted tracer),
 //! its point lights (intensity `color`, falling off with the squared distance) and,
-//! for photons only, a uniform environment of radiance `environment` seen by rays that
-//! leave the scene. Light sampling picks an emitter with probability proportional to its
-//! power, then a point uniformly on its area; the environment is found by BSDF sampling
-//! alone, so it is not among the sampled emitters. Emissive spheres and planes shine on
-//! what sees them but are never sampled.
+//! a uniform environment of radiance `environment` seen by rays that leave the scene.
+//! Light sampling picks an emitter with probability proportional to its power, then a
+//! point uniformly on its area. The environment is sampled on its own, by a
+//! cosine-weighted direction about the surface normal ([`Lights::sample_environment`]):
+//! the path tracer takes one such sample at every vertex beside the emitter sample, and
+//! the photon map shoots environment photons. Emissive spheres and planes shine on what
+//! sees them but are never sampled.
 
 use super::sample::{Onb, cosine_hemisphere};
 use crate::scene::{Light, Scene};
 use glam::Vec3;
 use std::collections::HashMap;
-use std::f32::consts::PI;
+use std::f32::consts::{FRAC_1_PI, PI};
 
 /// A flat emitter: a triangle (one-sided, toward `normal`) or an area light's
 /// parallelogram `corner + s edge_u + t edge_v` (two-sided).
@@ -208,6 +210,29 @@ impl Lights {
             emitter_power: total,
             environment_power,
         }
+    }
+
+    /// True when rays that leave the scene bring light: the path tracer then samples the
+    /// environment at each vertex ([`Lights::sample_environment`]).
+    pub fn has_environment(&self) -> bool {
+        self.environment.max_element() > 0.0
+    }
+
+    /// A direction toward the environment from a surface of normal `n` (unit, on the
+    /// side the light arrives), cosine-weighted about `n` from a 2D point: the ideal
+    /// density for a uniform sky over a Lambertian surface. Returns the direction and its
+    /// density ([`Lights::environment_pdf`]).
+    pub fn sample_environment(&self, n: Vec3, (u1, u2): (f32, f32)) -> (Vec3, f32) {
+        let wi = Onb::from_w(n)
+            .to_world(cosine_hemisphere(u1, u2))
+            .normalize();
+        (wi, self.environment_pdf(n, wi))
+    }
+
+    /// The solid-angle density with which [`Lights::sample_environment`] from a surface
+    /// of normal `n` picks `wi`.
+    pub fn environment_pdf(&self, n: Vec3, wi: Vec3) -> f32 {
+        wi.dot(n).max(0.0) * FRAC_1_PI
     }
 
     /// True when next-event estimation has nothing to sample.

@@ -1,17 +1,19 @@
 //! render: unidirectional path tracing with next-event estimation.
 //!
-//! At every vertex with a non-delta lobe one light sample is taken ([`GiScene::direct`])
-//! and the path continues by sampling the BSDF ([`super::bsdf`]). Emission found by a
-//! BSDF sample is weighted against the light-sampling density by the power heuristic
-//! (Veach 1997), so each light path is counted once in expectation; emission seen by the
-//! camera, after a delta bounce, or from an emitter light sampling never picks (spheres,
-//! planes, the environment) counts in full. Russian roulette ends paths from the fourth
+//! At every vertex with a non-delta lobe one emitter sample is taken ([`GiScene::direct`]),
+//! and one environment sample when the scene has a sky ([`GiScene::environment_query`]);
+//! the path continues by sampling the BSDF ([`super::bsdf`]). Emission found by a BSDF
+//! sample (an emitter, or the sky where the path escapes) is weighted against the
+//! light-sampling density by the power heuristic (Veach 1997), so each light path is
+//! counted once in expectation; emission seen by the camera, after a delta bounce, or
+//! from an emitter light sampling never picks (spheres, planes) counts in full. Russian roulette ends paths from the fourth
 //! vertex on ([`super::gi::survives`]); `max_bounces` optionally caps the scattering
 //! events, counting both kinds of paths alike (light sampling at vertex `k` makes a path
 //! of `k + 1` bounces).
 //!
-//! Random numbers per vertex, in order: three for the light sample, three for the BSDF
-//! sample, one for Russian roulette.
+//! Numbers drawn per vertex, in order ([`Sampler`]): a choice and a 2D point for the light
+//! sample, a 2D point for the environment sample (with a sky only), a choice and a 2D
+//! point for the BSDF sample, one value for Russian roulette.
 //!
 //! Paths are traced one vertex at a time (`PathTracer::advance`), either alone
 //! ([`Integrator::radiance_traced`], the reference) or as a wavefront of many paths
@@ -22,7 +24,7 @@
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
 use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
-use super::sample::Pcg32;
+use super::sample::Sampler;
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
@@ -41,12 +43,18 @@ struct Path {
     /// Density of the BSDF sample that made the current ray; `None` for the camera ray
     /// and after a delta lobe (emission then counts in full).
     bsdf_pdf: Option<f32>,
+    /// Normal of the surface the current ray left (on its side): the environment
+    /// sample's density there weighs the sky the ray finds.
+    from_normal: Vec3,
     vertex: u32,
-    /// Direct light waiting for its shadow ray: the throughput at its vertex and the
-    /// radiance the light sample brings if the ray is unoccluded.
-    waiting: Option<(Vec3, Vec3)>,
+    /// Direct light waiting for its shadow rays (the emitter's, the environment's): the
+    /// throughput at its vertex and the radiance the sample brings if unoccluded.
+    waiting: [Option<(Vec3, Vec3)>; 2],
     alive: bool,
 }
+
+/// The shadow rays of one vertex: the emitter sample's, then the environment's.
+type Queries = [Option<ShadowQuery>; 2];
 
 impl Path {
     /// A path starting with camera ray `ray`.
@@ -56,15 +64,16 @@ impl Path {
             beta: Vec3::ONE,
             l: Vec3::ZERO,
             bsdf_pdf: None,
+            from_normal: Vec3::ZERO,
             vertex: 0,
-            waiting: None,
+            waiting: [None; 2],
             alive: true,
         }
     }
 
-    /// Adds the waiting direct light once its shadow ray is answered.
-    fn resolve(&mut self, occluded: bool) {
-        if let Some((beta, value)) = self.waiting.take() {
+    /// Adds the waiting direct light of shadow ray `slot` once it is answered.
+    fn resolve(&mut self, slot: usize, occluded: bool) {
+        if let Some((beta, value)) = self.waiting[slot].take() {
             self.l += beta * if occluded { Vec3::ZERO } else { value };
         }
     }
@@ -72,21 +81,22 @@ impl Path {
 
 impl PathTracer<'_> {
     /// Takes `p` through the vertex where its current ray ends (`hit`, its closest hit):
-    /// emission, one light sample, one BSDF sample and Russian roulette. Returns the light
-    /// sample's shadow ray (counted), whose answer [`Path::resolve`] takes; the path is
-    /// then done, or holds the next ray to trace.
+    /// emission, the light samples, one BSDF sample and Russian roulette. Returns the
+    /// light samples' shadow rays (counted), whose answers [`Path::resolve`] takes by
+    /// slot; the path is then done, or holds the next ray to trace.
     fn advance(
         &self,
         p: &mut Path,
         hit: Option<Hit>,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         counts: &mut GiCounts,
-    ) -> Option<ShadowQuery> {
+    ) -> Queries {
         let g = &self.scene;
         let Some(h) = g.at_hit(&p.seg, hit, &mut p.beta) else {
-            p.l += p.beta * g.lights.environment;
+            let w = g.environment_weight(p.bsdf_pdf, p.from_normal, p.seg.ray.dir);
+            p.l += p.beta * g.lights.environment * w;
             p.alive = false;
-            return None;
+            return [None; 2];
         };
         let le = g.emitted(&h);
         if le != Vec3::ZERO {
@@ -101,31 +111,36 @@ impl PathTracer<'_> {
         }
         if g.max_bounces.is_some_and(|m| p.vertex >= m) {
             p.alive = false;
-            return None;
+            return [None; 2];
         }
         let wo = -p.seg.ray.dir;
-        let query = g.direct_query(&h, wo, rng, true);
-        match query {
-            Some(q) => {
-                counts.shadow += 1;
-                p.waiting = Some((p.beta, q.value));
-            }
+        let queries = [
+            g.direct_query(&h, wo, sampler, true),
+            g.environment_query(&h, wo, sampler),
+        ];
+        match queries[0] {
+            Some(q) => p.waiting[0] = Some((p.beta, q.value)),
             None => p.l += p.beta * Vec3::ZERO,
         }
-        let Some(s) = h.bsdf.sample(wo, rng) else {
+        if let Some(q) = queries[1] {
+            p.waiting[1] = Some((p.beta, q.value));
+        }
+        counts.shadow += queries.iter().flatten().count() as u64;
+        let Some(s) = h.bsdf.sample(wo, sampler.next_choice_2d()) else {
             p.alive = false;
-            return query;
+            return queries;
         };
         p.beta *= s.weight;
-        if !survives(p.vertex, &mut p.beta, rng) {
+        if !survives(p.vertex, &mut p.beta, sampler) {
             p.alive = false;
-            return query;
+            return queries;
         }
         p.bsdf_pdf = (!s.delta).then_some(s.pdf);
+        p.from_normal = h.n;
         p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
         counts.bounce += 1;
         p.vertex += 1;
-        query
+        queries
     }
 
     /// Answers a generation's shadow rays (`rays`, `point_light[i]` when ray `i` ends at
@@ -177,15 +192,18 @@ impl Integrator for PathTracer<'_> {
         &self,
         ray: &Ray,
         first: Option<Hit>,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         counts: &mut GiCounts,
     ) -> Vec3 {
         let accel = self.scene.shader.accel;
         let mut p = Path::new(*ray);
         let mut hit = first;
         loop {
-            if let Some(q) = self.advance(&mut p, hit, rng, counts) {
-                p.resolve(accel.occluded(&q.ray));
+            let queries = self.advance(&mut p, hit, sampler, counts);
+            for (slot, q) in queries.iter().enumerate() {
+                if let Some(q) = q {
+                    p.resolve(slot, accel.occluded(&q.ray));
+                }
             }
             if !p.alive {
                 return p.l;
@@ -198,7 +216,7 @@ impl Integrator for PathTracer<'_> {
         &self,
         rays: &[Ray],
         first: &[Hit],
-        rngs: &mut [Pcg32],
+        samplers: &mut [Sampler],
         mode: Mode,
         counts: &mut GiCounts,
     ) -> Vec<Vec3> {
@@ -208,7 +226,8 @@ impl Integrator for PathTracer<'_> {
         let mut live: Vec<usize> = (0..paths.len()).collect();
         let mut hits = first.to_vec();
         let mut camera_vertex = true;
-        // The generation's shadow rays, the paths they belong to and their answers.
+        // The generation's shadow rays, the paths (and slots) they belong to and their
+        // answers.
         let (mut owners, mut shadow_rays, mut point_light) = (Vec::new(), Vec::new(), Vec::new());
         let mut occluded = Vec::new();
         let mut bounce_rays = Vec::new();
@@ -218,10 +237,13 @@ impl Integrator for PathTracer<'_> {
             point_light.clear();
             for (&i, h) in live.iter().zip(&hits) {
                 let hit = h.is_hit().then_some(*h);
-                if let Some(q) = self.advance(&mut paths[i], hit, &mut rngs[i], counts) {
-                    owners.push(i);
-                    shadow_rays.push(q.ray);
-                    point_light.push(q.point_light);
+                let queries = self.advance(&mut paths[i], hit, &mut samplers[i], counts);
+                for (slot, q) in queries.iter().enumerate() {
+                    if let Some(q) = q {
+                        owners.push((i, slot));
+                        shadow_rays.push(q.ray);
+                        point_light.push(q.point_light);
+                    }
                 }
             }
             self.shadows(
@@ -232,8 +254,8 @@ impl Integrator for PathTracer<'_> {
                 &mut occluded,
                 counts,
             );
-            for (&i, &o) in owners.iter().zip(&occluded) {
-                paths[i].resolve(o);
+            for (&(i, slot), &o) in owners.iter().zip(&occluded) {
+                paths[i].resolve(slot, o);
             }
             live.retain(|&i| paths[i].alive);
             bounce_rays.clear();

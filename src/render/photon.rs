@@ -33,7 +33,7 @@
 //! tracer only; photon paths end by Russian roulette.
 
 use super::gi::{GiCounts, GiHit, GiScene, Integrator, Segment};
-use super::sample::Pcg32;
+use super::sample::{Pcg32, Sampler};
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -394,7 +394,7 @@ impl<'a> PhotonMapper<'a> {
         h: &GiHit,
         wo: Vec3,
         medium: Vec3,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         counts: &mut GiCounts,
         heap: &mut BinaryHeap<Near>,
     ) -> Vec3 {
@@ -402,7 +402,7 @@ impl<'a> PhotonMapper<'a> {
         let count = self.settings.gather.max(1);
         let mut sum = Vec3::ZERO;
         for _ in 0..count {
-            let Some(s) = h.bsdf.sample_smooth(wo, rng) else {
+            let Some(s) = h.bsdf.sample_smooth(wo, sampler.next_choice_2d()) else {
                 continue;
             };
             let mut beta = s.weight;
@@ -416,7 +416,7 @@ impl<'a> PhotonMapper<'a> {
                     break;
                 };
                 sum += beta * self.gathered(&y, heap);
-                let Some(d) = y.bsdf.sample_delta(-seg.ray.dir, rng) else {
+                let Some(d) = y.bsdf.sample_delta(-seg.ray.dir, sampler.next_choice_2d()) else {
                     break;
                 };
                 beta *= d.weight;
@@ -463,7 +463,8 @@ fn shoot(
                 caustic.push(ph);
             }
         }
-        let Some(s) = h.bsdf.sample(-seg.ray.dir, rng) else {
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let Some(s) = h.bsdf.sample(-seg.ray.dir, u) else {
             break;
         };
         // Russian roulette on the scattering weight keeps powers level.
@@ -487,7 +488,7 @@ impl Integrator for PhotonMapper<'_> {
         &self,
         ray: &Ray,
         first: Option<Hit>,
-        rng: &mut Pcg32,
+        sampler: &mut Sampler,
         counts: &mut GiCounts,
     ) -> Vec3 {
         let g = &self.scene;
@@ -507,12 +508,12 @@ impl Integrator for PhotonMapper<'_> {
             l += beta * g.emitted(&h);
             let wo = -seg.ray.dir;
             if h.bsdf.has_smooth() {
-                let direct = g.direct(&h, wo, rng, false, counts);
+                let direct = g.direct(&h, wo, sampler, false, counts);
                 let caustic = self.estimate(&self.caustic, &h, &mut heap);
-                let indirect = self.gather(&h, wo, seg.medium, rng, counts, &mut heap);
+                let indirect = self.gather(&h, wo, seg.medium, sampler, counts, &mut heap);
                 l += beta * (direct + caustic + indirect);
             }
-            let Some(d) = h.bsdf.sample_delta(wo, rng) else {
+            let Some(d) = h.bsdf.sample_delta(wo, sampler.next_choice_2d()) else {
                 break;
             };
             beta *= d.weight;
