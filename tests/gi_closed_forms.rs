@@ -301,6 +301,15 @@ fn form_factor_corner(x: f64, y: f64, h: f64) -> f64 {
 /// The floor at the origin then reflects `rho le F`, `F` the form factor to the square.
 #[test]
 fn irradiance_under_a_small_area_light_matches_the_form_factor() {
+    // Also far from the origin, where hit points are rounded to a few thousandths: the
+    // rays leaving the floor must start above it ([`Shader::rounding_offset`]), or their
+    // own floor would shadow them.
+    for shift in [Vec3::ZERO, Vec3::new(1500.0, -2500.0, 2000.0)] {
+        irradiance_under_a_small_area_light(shift);
+    }
+}
+
+fn irradiance_under_a_small_area_light(shift: Vec3) {
     let (rho, le, side, h) = (0.5f32, 10.0f32, 1.0f32, 2.0f32);
     let mut g = Geometry::default();
     let mut mat = Vec::new();
@@ -314,7 +323,8 @@ fn irradiance_under_a_small_area_light_matches_the_form_factor() {
             Vec3::new(-big, 0.0, big),
             Vec3::new(big, 0.0, big),
             Vec3::new(big, 0.0, -big),
-        ],
+        ]
+        .map(|v| v + shift),
     );
     let s2 = side / 2.0;
     quad(
@@ -326,7 +336,8 @@ fn irradiance_under_a_small_area_light_matches_the_form_factor() {
             Vec3::new(s2, h, -s2),
             Vec3::new(s2, h, s2),
             Vec3::new(-s2, h, s2),
-        ],
+        ]
+        .map(|v| v + shift),
     );
     assert!(g.geometric_normal(0, Vec3::ZERO).y > 0.0 && g.geometric_normal(2, Vec3::ZERO).y < 0.0);
     let s = scene(
@@ -337,7 +348,7 @@ fn irradiance_under_a_small_area_light_matches_the_form_factor() {
     let f = 4.0 * form_factor_corner(s2 as f64, s2 as f64, h as f64);
     let want = Vec3::splat(rho * le * f as f32);
     let eye = Vec3::new(0.0, 1.0, -1.5);
-    let ray = Ray::new(eye, (-eye).normalize(), 0.0, f32::INFINITY);
+    let ray = Ray::new(eye + shift, (-eye).normalize(), 0.0, f32::INFINITY);
     let accel = KdTree::build(&s.geometry);
     for bounces in [Some(1), None] {
         let pt = PathTracer {
@@ -345,7 +356,7 @@ fn irradiance_under_a_small_area_light_matches_the_form_factor() {
         };
         let e = estimate(&pt, &ray, 40_000, 4);
         assert_close(
-            &format!("area light, path, bounces {bounces:?}"),
+            &format!("area light, path, bounces {bounces:?}, shifted by {shift}"),
             e,
             want,
             0.01,
@@ -360,7 +371,12 @@ fn irradiance_under_a_small_area_light_matches_the_form_factor() {
         },
     );
     let e = estimate(&pm, &ray, 40_000, 5);
-    assert_close("area light, photon", e, want, 0.01);
+    assert_close(
+        &format!("area light, photon, shifted by {shift}"),
+        e,
+        want,
+        0.01,
+    );
 }
 
 /// A point light of intensity `I` at height `h` above a floor of albedo `rho`: the floor

@@ -323,4 +323,27 @@ fn gi_scene_files_load() {
     assert_eq!(sp.geometry.triangles.len(), 262_267);
     assert_eq!(sp.lights.len(), 1);
     assert!(sp.settings.background.min_element() > 0.0);
+    // Sponza under the sky alone, every triangle grey Lambertian 0.5.
+    let sky = raypack::scene::file::load(&dir.join("sponza_sky.toml")).unwrap();
+    assert_eq!(sky.geometry.triangles.len(), 262_267);
+    assert!(sky.lights.is_empty());
+    assert_eq!(sky.settings.background, Vec3::ONE);
+    let grey = sky.material(0);
+    assert_eq!(
+        (grey.color * grey.diffuse, grey.emission),
+        (Vec3::splat(0.5), Vec3::ZERO)
+    );
+    // The Cornell box with a mirror sphere and a glass sphere.
+    let spheres = raypack::scene::file::load(&dir.join("spheres.toml")).unwrap();
+    assert_eq!(spheres.geometry.triangles.len(), 36);
+    assert_eq!(spheres.geometry.spheres.len(), 2);
+    let [mirror, glass] = [36, 37].map(|p| spheres.material(p));
+    assert_eq!(
+        (mirror.reflection, mirror.glossiness, mirror.diffuse),
+        (1.0, 0.0, 0.0)
+    );
+    assert_eq!(
+        (glass.refraction, glass.ior, glass.diffuse),
+        (1.0, 1.5, 0.0)
+    );
 }

@@ -542,11 +542,7 @@ impl Scene {
     ) -> PyResult<Scene> {
         let geometry = &staged.scene.geometry;
         let (tree, triangle_normals) = on_pool(py, threads, || {
-            let normals = (0..geometry.triangles.len() as u32)
-                .into_par_iter()
-                .map(|t| geometry.geometric_normal(t, Vec3::ZERO))
-                .collect();
-            (KdTree::build(geometry), normals)
+            (KdTree::build(geometry), geometry.triangle_normals())
         })?;
         Ok(Scene {
             triangle_normals,

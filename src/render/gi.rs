@@ -102,7 +102,7 @@ pub trait Integrator: Sync {
 }
 
 /// What both integrators trace against: the scene, its accelerator, its emitters and
-/// the ray offset of the Whitted tracer ([`Shader::offset`]).
+/// the offset of rays leaving a surface ([`Shader::rounding_offset`]).
 pub struct GiScene<'a> {
     pub shader: Shader<'a>,
     pub lights: Lights,
@@ -122,7 +122,7 @@ pub struct GiHit<'a> {
     pub front: bool,
     pub material: &'a Material,
     pub bsdf: Bsdf,
-    /// Offset of rays leaving `p` ([`Shader::offset`]).
+    /// Offset of rays leaving `p` ([`Shader::rounding_offset`]).
     pub epsilon: f32,
 }
 
@@ -211,7 +211,7 @@ impl<'a> GiScene<'a> {
             front: !s.inside,
             material: s.material,
             bsdf: Bsdf::new(s.material, s.albedo, s.ng, !s.inside),
-            epsilon: self.shader.offset(seg.ray.org, s.p),
+            epsilon: Shader::rounding_offset(seg.ray.org, s.p),
         })
     }
 

@@ -160,7 +160,7 @@ impl PathTracer<'_> {
         occluded.clear();
         occluded.resize(rays.len(), false);
         let packet = mode.group_mode();
-        if !camera_vertex || packet == Mode::Scalar {
+        if !camera_vertex || packet == Mode::Scalar || !point_light.contains(&true) {
             occluded_unrelated(accel, mode, rays, occluded);
             return;
         }

@@ -124,6 +124,8 @@ pub struct Shader<'a> {
     /// glossy rays of a hit are tested at ([`super::batch::ShadowBatch`]); the
     /// answers, and so the image, are the same.
     pub mode: Mode,
+    /// [`crate::geom::Geometry::triangle_normals`]: a hit's geometric normal in one read.
+    pub triangle_normals: Vec<Vec3>,
 }
 
 /// The mutable state of one camera sample's ray tree.
@@ -256,6 +258,7 @@ impl<'a> Shader<'a> {
             accel,
             epsilon,
             mode: Mode::Scalar,
+            triangle_normals: scene.geometry.triangle_normals(),
         }
     }
 
@@ -317,6 +320,17 @@ impl<'a> Shader<'a> {
         self.epsilon
             .max(magnitude * RELATIVE_OFFSET)
             .max(f32::MIN_POSITIVE)
+    }
+
+    /// How far a ray of the global-illumination integrators from hit point `p`, found by
+    /// a ray from `from`, starts off the surface: [`RELATIVE_OFFSET`] of the larger
+    /// coordinate magnitude alone, the margin of the hit point's rounding, without the
+    /// Whitted tracer's floor of `1e-4` times the scene's diagonal. Lifting every bounce
+    /// by that floor lets it skip blockers next to the surface: Sponza under a sky came
+    /// out 0.36% brighter than Mitsuba 3's image with it (perf/gi.md). Never zero.
+    pub fn rounding_offset(from: Vec3, p: Vec3) -> f32 {
+        let magnitude = from.abs().max_element().max(p.abs().max_element());
+        (magnitude * RELATIVE_OFFSET).max(f32::MIN_POSITIVE)
     }
 
     /// Direct light, then glossy or mirror reflection, then refraction, each bounce's
@@ -566,7 +580,10 @@ impl<'a> Shader<'a> {
     pub(super) fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'a> {
         let scene = self.scene;
         let p = ray.at(hit.t);
-        let mut ng = scene.geometry.geometric_normal(hit.prim, p);
+        let mut ng = match self.triangle_normals.get(hit.prim as usize) {
+            Some(&n) => n,
+            None => scene.geometry.geometric_normal(hit.prim, p),
+        };
         let mut ns = ng;
         let prim = scene.geometry.prim_ref(hit.prim);
         if let PrimRef::Triangle(tri) = prim
