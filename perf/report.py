@@ -803,41 +803,68 @@ def section_gi(gi, quick_flag):
         out += [f"**Not measured:** the comparison failed: `{gi['error']}`.", ""]
     else:
         c = gi["conditions"]
+        scenes = gi["scenes"]
         out.append(
-            f"The benchmark Cornell box (`{c['scene']}`: its OBJ with `o`/`usemtl` groups "
-            f"and MTL; the light's radiance is its `Ka`) at {c['width']}x{c['height']}, "
-            f"{c['spp']} samples per pixel, {c['threads']} threads, box pixel filter, "
-            "the camera of cameras.toml (vertical fov). raypack: "
-            f"`{c['raypack_command']}`. Mitsuba {c['mitsuba_version']} "
-            f"(`{c['variant']}`): `path` integrator, max depth {c['max_depth']}, Russian "
-            f"roulette from depth {c['rr_depth']} (raypack's: {c['rr_note']}), "
-            "`independent` sampler, Lambertian surfaces as `twosided` `diffuse`, the light "
-            "an `area` emitter. "
-            f"{plural(c['rounds'], 'round')}, the two renderers taking turns; time is the render "
-            "alone (scene loading and acceleration structure excluded; Mitsuba's after a "
-            "warm-up render that compiles its kernels), median over rounds; round k uses "
-            "seed k in both, so the images, and the MSE, repeat from run to run. MSE is "
-            f"against a Mitsuba reference of {c['reference_spp']:,} samples per pixel (made "
-            "once by the same script and kept in its cache folder, outside the repository; "
-            "mean over pixels and channels of linear radiance, median over rounds); "
-            "efficiency is 1 / (time x MSE).")
+            "raypack's path tracer and Mitsuba's on the scene files of scenes/gi, each "
+            "rendered by raypack from the file and by Mitsuba from the same file as "
+            "perf/gi_vs_mitsuba.py translates it (its docstring gives the rules): "
+            + "; ".join(f"`{r['scene']}`, {r['about']} (`{r['file']}`)" for r in scenes)
+            + ". "
+            f"All at {c['width']}x{c['height']}, {c['threads']} threads, box pixel filter, "
+            "the file's camera (vertical fov). raypack: "
+            f"`{scenes[0].get('raypack_command', 'raypack render FILE --integrator path')}` "
+            f"and alike. Mitsuba {c['mitsuba_version']} (`{c['variant']}`): `path` "
+            f"integrator, max depth {c['max_depth']}, Russian roulette from depth "
+            f"{c['rr_depth']} (raypack's: {c['rr_note']}), `independent` sampler "
+            "(raypack: Owen-scrambled Sobol points, its default); "
+            "Lambertian surfaces as `twosided` `diffuse`, the mirror as `conductor` of "
+            "material \"none\", glass as `dielectric`, lights as `area` emitters, the sky "
+            f"as a `constant` emitter. {plural(c['rounds'], 'round')} per scene, the two "
+            "renderers taking turns; time is the render alone (scene loading and "
+            "acceleration structure excluded; Mitsuba's after a warm-up render that "
+            "compiles its kernels), median over rounds; round k uses seed k in both, so "
+            "the images, and the MSE, repeat from run to run. MSE is against a Mitsuba "
+            "reference of the samples per pixel given (made once by the same script and "
+            "kept in its cache folder, outside the repository; mean over pixels and "
+            "channels of linear radiance, median over rounds); efficiency is 1 / (time x "
+            "MSE), and its ratio above 1 means raypack reaches a given error sooner.")
         out.append("")
-        header = ["renderer", "time", "MSE", "efficiency", "mean R, G, B (reference: "
-                  + ", ".join(f"{x:.4f}" for x in gi["reference_means"]) + ")"]
+        header = ["scene", "spp", "reference spp", "raypack time", "Mitsuba time",
+                  "raypack MSE", "Mitsuba MSE", "time ratio", "MSE ratio",
+                  "efficiency ratio", "agree"]
         body = []
-        for who in ("raypack", "mitsuba"):
-            g = gi[who]
-            body.append([g["label"], f"{g['seconds']:.2f} s", f"{g['mse']:.5f}",
-                         f"{g['efficiency']:.2f}",
-                         ", ".join(f"{x:.4f}" for x in g["means"])])
-        out += [table(header, body, ["l", "r", "r", "r", "l"]), ""]
-        r = gi["ratios"]
-        out += [f"raypack / Mitsuba: time **{r['time']:.2f}**, MSE **{r['mse']:.2f}**, "
-                f"efficiency **{r['efficiency']:.2f}** (above 1: raypack reaches a given "
-                "error sooner).", ""]
-        out += [gi["agreement"], ""]
+        for r in scenes:
+            if "error" in r:
+                body.append([f"`{r['scene']}`"] + ["-"] * 9 + ["not measured"])
+                continue
+            a, b, q = r["raypack"], r["mitsuba"], r["ratios"]
+            body.append([f"`{r['scene']}`", r["spp"], f"{r['reference_spp']:,}",
+                         f"{a['seconds']:.2f} s", f"{b['seconds']:.2f} s",
+                         f"{a['mse']:.3g}", f"{b['mse']:.3g}", f"{q['time']:.2f}",
+                         f"{q['mse']:.2f}", f"**{q['efficiency']:.2f}**",
+                         "yes" if r["agree"] else "**no**"])
+        if "ratios" in gi:
+            q = gi["ratios"]
+            body.append(["geometric mean", "", "", "", "", "", "", f"{q['time']:.2f}",
+                         f"{q['mse']:.2f}", f"**{q['efficiency']:.2f}**", ""])
+        out += [table(header, body, ["l"] + ["r"] * 9 + ["l"]), ""]
+        out.append("Ratios are raypack / Mitsuba. Agreement, scene by scene, of each "
+                   "renderer's mean image over the rounds with the reference (the mean "
+                   "over all pixels as a difference from the reference's, with its "
+                   "standard error):")
+        out.append("")
+        for r in scenes:
+            if "error" in r:
+                out.append(f"- `{r['scene']}`: not measured: `{r['error']}`")
+                continue
+            means = "; ".join(
+                f"{r[who]['label']} {100 * r[who]['mean_difference']:+.2f}% "
+                f"± {100 * r[who]['mean_difference_se']:.2f}%" for who in ("raypack", "mitsuba"))
+            out.append(f"- `{r['scene']}`: {r['agreement']} Mean over pixels: {means}.")
+        out.append("")
     out += [f"Reproduce: `python3 perf/report.py{quick_flag} --only gi`, or "
-            f"`python3 perf/gi_vs_mitsuba.py{quick_flag}` alone.", ""]
+            f"`python3 perf/gi_vs_mitsuba.py{quick_flag}` alone (`--scene NAME` for one "
+            "scene).", ""]
     return out
 
 
