@@ -27,7 +27,7 @@ import numpy as np
 from . import _raypack
 from ._raypack import Error
 
-__all__ = ["Error", "Hits", "Scene", "isa", "render", "MODES", "INTEGRATORS", "MAX_GI_SPP"]
+__all__ = ["Error", "Hits", "Scene", "isa", "render", "MODES", "INTEGRATORS", "SAMPLERS", "MAX_GI_SPP"]
 
 #: How rays are handed to the kernels. ``stream`` (one ray per SIMD lane, each on its
 #: own walk) suits rays in any order; ``packet`` (the widest packet the CPU runs),
@@ -41,6 +41,9 @@ MODES = ("auto", "stream", "packet", "packet4", "packet8", "packet16", "tile64",
 
 #: The renderers of :func:`render`.
 INTEGRATORS = ("whitted", "path", "photon")
+
+#: How ``path`` and ``photon`` draw each sample's numbers (:func:`render`'s ``sampler``).
+SAMPLERS = ("sobol", "independent")
 
 ArrayLike = Union[np.ndarray, Sequence]
 
@@ -345,6 +348,7 @@ def render(
     max_bounces: Optional[int] = None,
     threads: Optional[int] = None,
     mode: str = "packet",
+    sampler: str = "sobol",
 ) -> np.ndarray:
     """Renders ``scene`` as ``raypack render`` does and returns the linear radiance,
     a float32 array of shape ``(height, width, 3)``, row ``0`` at the top; the same
@@ -357,8 +361,10 @@ def render(
     a mesh), the camera to :attr:`Scene.camera`. A mesh is lit as the command line lights
     it: its emissive materials, else a key and a fill light for ``whitted`` and a uniform
     sky of radiance 1 for ``path`` and ``photon`` (``sky``, one value or RGB, sets
-    another). The image depends on the scene, the options and ``seed``, never on
-    ``threads`` or ``mode``.
+    another). ``sampler`` is how ``path`` and ``photon`` draw each sample's numbers:
+    ``"sobol"`` (Owen-scrambled Sobol points, the default) or ``"independent"``. The
+    image depends on the scene, the options and ``seed``, never on ``threads`` or
+    ``mode``.
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene: expected a raypack.Scene, got {type(scene).__name__}")
@@ -366,6 +372,10 @@ def render(
         raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, not {integrator!r}")
     if max_bounces is not None and integrator != "path":
         raise ValueError("max_bounces applies to integrator='path' only")
+    if sampler not in SAMPLERS:
+        raise ValueError(f"sampler must be one of {', '.join(SAMPLERS)}, not {sampler!r}")
+    if sampler != "sobol" and integrator == "whitted":
+        raise ValueError("sampler applies to integrator='path' and 'photon' only")
     camera = None
     if any(x is not None for x in (eye, target, up, vfov)):
         camera = scene._view(eye, target, up, vfov)
@@ -390,6 +400,7 @@ def render(
         _mode(mode),
         _size("photons", photons),
         None if max_bounces is None else _count("max_bounces", max_bounces),
+        sampler,
     )
 
 

@@ -49,5 +49,5 @@ def render(
     scene: Scene, width: Optional[int], height: Optional[int], spp: Optional[int],
     integrator: str, camera: Optional[Tuple[_Vec3, _Vec3, _Vec3, float]],
     sky: Optional[_Vec3], seed: Optional[int], threads: int, mode: str, photons: int,
-    max_bounces: Optional[int],
+    max_bounces: Optional[int], sampler: str,
 ) -> np.ndarray: ...

@@ -19,6 +19,7 @@ use raypack::rayset::{standard, trace};
 use raypack::render::gi::{GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
+use raypack::render::sample::SamplerKind;
 use raypack::render::tiles;
 use raypack::scene::catalog;
 use raypack::scene::file::MAX_PIXELS;
@@ -575,10 +576,20 @@ fn render<'py>(
     mode: &str,
     photons: u32,
     max_bounces: Option<u32>,
+    sampler: &str,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     if let Some(why) = &scene.not_renderable {
         return Err(error(why));
     }
+    let sampler = match sampler {
+        "sobol" => SamplerKind::Sobol,
+        "independent" => SamplerKind::Independent,
+        _ => {
+            return Err(error(format!(
+                "sampler {sampler:?}: expected sobol or independent"
+            )));
+        }
+    };
     let mode = parse_mode(mode)?.unwrap_or_else(Mode::native_packet);
     let mut staged = scene.staged.clone();
     if let Some((eye, target, up, vfov)) = camera {
@@ -636,7 +647,8 @@ fn render<'py>(
             let (environment, _) = studio::gi_environment(&staged, sky.map(Vec3::from_array));
             let gi_scene = &staged.scene;
             on_pool(py, threads, || {
-                let gi = GiScene::new(gi_scene, &scene.tree, environment, max_bounces);
+                let mut gi = GiScene::new(gi_scene, &scene.tree, environment, max_bounces);
+                gi.sampler = sampler;
                 if integrator == "path" {
                     let tracer = PathTracer { scene: gi };
                     render_gi(gi_scene, &tracer, spp, mode, &|| {}).film

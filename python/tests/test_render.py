@@ -36,6 +36,8 @@ def cli_image(tmp_path, scene, *args) -> np.ndarray:
         (str(REPO / "scenes" / "part3.toml"), dict(width=80, height=60), ["--width", 80, "--height", 60]),
         (KNOT, dict(width=48, height=32, spp=2, integrator="path", seed=7),
          ["--width", 48, "--height", 32, "--spp", 2, "--integrator", "path", "--seed", 7]),
+        (KNOT, dict(width=48, height=32, spp=2, integrator="path", sampler="independent"),
+         ["--width", 48, "--height", 32, "--spp", 2, "--integrator", "path", "--sampler", "independent"]),
         (KNOT, dict(width=32, height=32, spp=1, integrator="photon", photons=5000, sky=0.5),
          ["--width", 32, "--height", 32, "--spp", 1, "--integrator", "photon", "--photons", 5000, "--sky", 0.5]),
         (KNOT, dict(width=40, height=24, eye=[3, 2, 6], target=[0, 0, 0], up=[0, 1, 0], vfov=35),
@@ -80,6 +82,10 @@ def test_bad_render_options():
         raypack.render(scene, 8, 8, spp=0, integrator="path")
     with pytest.raises(ValueError, match="integrator must be one of"):
         raypack.render(scene, 8, 8, integrator="radiosity")
+    with pytest.raises(ValueError, match="sampler must be one of sobol, independent"):
+        raypack.render(scene, 8, 8, integrator="path", sampler="halton")
+    with pytest.raises(ValueError, match="sampler applies to integrator='path' and 'photon'"):
+        raypack.render(scene, 8, 8, sampler="independent")
     with pytest.raises(ValueError, match="max_bounces applies to integrator='path'"):
         raypack.render(scene, 8, 8, max_bounces=3)
     with pytest.raises(raypack.Error, match="an image has 1 to"):
