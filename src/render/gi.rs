@@ -305,9 +305,7 @@ impl<'a> GiScene<'a> {
             point_light: ls.delta,
         })
     }
-}
 
-impl GiScene<'_> {
     /// Next-event estimation of the environment at `h` for outgoing `wo`: a direction
     /// from [`Lights::sample_environment`], its shadow ray to infinity, and
     /// `f cos L / pdf` weighted by the power heuristic against BSDF sampling. Draws a 2D

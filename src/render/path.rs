@@ -6,10 +6,10 @@
 //! sample (an emitter, or the sky where the path escapes) is weighted against the
 //! light-sampling density by the power heuristic (Veach 1997), so each light path is
 //! counted once in expectation; emission seen by the camera, after a delta bounce, or
-//! from an emitter light sampling never picks (spheres, planes) counts in full. Russian roulette ends paths from the fourth
-//! vertex on ([`super::gi::survives`]); `max_bounces` optionally caps the scattering
-//! events, counting both kinds of paths alike (light sampling at vertex `k` makes a path
-//! of `k + 1` bounces).
+//! from an emitter light sampling never picks (spheres, planes) counts in full. Russian
+//! roulette ends paths from the fourth vertex on ([`super::gi::survives`]); `max_bounces`
+//! optionally caps the scattering events, counting both kinds of paths alike (light
+//! sampling at vertex `k` makes a path of `k + 1` bounces).
 //!
 //! Numbers drawn per vertex, in order ([`Sampler`]): a choice and a 2D point for the light
 //! sample, a 2D point for the environment sample (with a sky only), a choice and a 2D

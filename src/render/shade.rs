@@ -316,10 +316,7 @@ impl<'a> Shader<'a> {
     /// the surface: the scene's `epsilon`, or [`RELATIVE_OFFSET`] of the larger
     /// coordinate magnitude when that is more (see the module doc). Never zero.
     pub fn offset(&self, from: Vec3, p: Vec3) -> f32 {
-        let magnitude = from.abs().max_element().max(p.abs().max_element());
-        self.epsilon
-            .max(magnitude * RELATIVE_OFFSET)
-            .max(f32::MIN_POSITIVE)
+        self.epsilon.max(Self::rounding_offset(from, p))
     }
 
     /// How far a ray of the global-illumination integrators from hit point `p`, found by
