@@ -12,8 +12,9 @@ translated from the same file, so both render one description:
   groups and an MTL) lit by its light;
 - `sponza_sky`: Crytek Sponza, every surface grey Lambertian of reflectance 0.5, lit only
   by a uniform sky of radiance 1 (raypack's `background`, Mitsuba's `constant` emitter);
-- `spheres`: the Cornell box with an ideal mirror sphere and a clear glass sphere
-  (Mitsuba's `conductor` of material "none" and `dielectric`).
+- `spheres`: the Cornell box with an ideal mirror sphere, a clear glass sphere and a
+  glossy gold sphere (Mitsuba's `conductor` of material "none", `dielectric` and
+  `roughconductor` of material "none" with GGX roughness).
 
 Both use the camera of the scene file (vertical fov: Mitsuba's `fov_axis` y), box pixel
 filter, and the same path tracer: next-event estimation with MIS,
@@ -33,6 +34,10 @@ they sum to more than 1:
   sides with the geometric normal; Mitsuba gets `face_normals`);
 - ideal mirror of reflectance `reflection * color` (`glossiness` 0): `twosided`
   `conductor` of material "none" and that `specular_reflectance`;
+- glossy reflection (`reflection` with `glossiness` g > 0), raypack's GGX perfect
+  conductor of roughness `g / sqrt(1 + g^2)`: `twosided` `roughconductor` of material
+  "none", `distribution` "ggx" and that `alpha`, which evaluates the same microfacet
+  model (Smith's separable shadowing-masking);
 - smooth dielectric (`refraction`, `ior`): `dielectric` of `int_ior` ior in air. Both
   reflect with the exact unpolarised Fresnel factor; Mitsuba scales transmitted radiance
   by eta^2, raypack does not, which is the same on closed objects (a path enters and
@@ -42,9 +47,9 @@ they sum to more than 1:
 MTL materials are Lambertian of albedo `Kd` (raypack's reading, src/scene/obj/mod.rs).
 Faces are split into triangle fans as raypack splits them, written per material into
 the cache folder as the OBJs Mitsuba loads. Anything else a scene file can say is
-refused rather than approximated: raypack's glossy and specular lobes are normalised
-Phong lobes, which Mitsuba 3 has no plugin for, so they are left out, as are mixtures of
-lobes, textures, `[[lights]]`, planes, boxes and mesh transforms.
+refused rather than approximated: raypack's specular lobe is a normalised Phong lobe,
+which Mitsuba 3 has no plugin for, so it is left out, as are mixtures of lobes,
+textures, `[[lights]]`, planes, boxes and mesh transforms.
 
 Mitsuba runs in child processes of this script (under timeouts), `llvm_ad_rgb` when
 its LLVM loads (DRJIT_LIBLLVM_PATH, by default the libLLVM.so.22 of the Rust toolchain),
@@ -92,10 +97,10 @@ SCENES = [
      "about": "Crytek Sponza, every surface grey Lambertian of reflectance 0.5, lit only "
               "by a uniform sky of radiance 1",
      "spp": 64, "reference_spp": 2048, "quick_spp": 8, "quick_reference_spp": 256},
-    {"name": "spheres", "title": "Cornell box with mirror and glass spheres",
+    {"name": "spheres", "title": "Cornell box with mirror, glass and glossy spheres",
      "file": "scenes/gi/spheres.toml",
-     "about": "the Cornell box with an ideal mirror sphere and a clear glass sphere of "
-              "index 1.5",
+     "about": "the Cornell box with an ideal mirror sphere, a clear glass sphere of "
+              "index 1.5 and a glossy gold sphere (GGX, alpha 0.287)",
      "spp": 256, "reference_spp": 8192, "quick_spp": 64, "quick_reference_spp": 2048},
 ]
 FULL = {"width": 256, "height": 192, "rounds": 3}
@@ -213,8 +218,9 @@ def rooted(path, scenes_dir):
 
 def material(raw, where):
     """A raypack material of the scene file (or an MTL's) with its defaults, checked to
-    be one Mitsuba can have alike: the fields `kind` ("diffuse", "mirror", "glass" or
-    "black"), `weight` (the lobe's, scaled down as raypack does), `ior`, `emission`."""
+    be one Mitsuba can have alike: the fields `kind` ("diffuse", "mirror", "glossy",
+    "glass" or "black"), `weight` (the lobe's, scaled down as raypack does), `ior`,
+    `alpha` (the glossy lobe's GGX roughness), `emission`."""
     unknown = set(raw) - set(MATERIAL_DEFAULTS)
     if unknown:
         raise SceneError(f"{where}: {', '.join(sorted(unknown))}: not translated for Mitsuba")
@@ -223,11 +229,9 @@ def material(raw, where):
     if m["specular"] > 0:
         raise SceneError(f"{where}: specular: raypack's normalised Phong lobe has no "
                          "Mitsuba 3 plugin")
-    if m["reflection"] > 0 and m["glossiness"] > 0:
-        raise SceneError(f"{where}: glossiness: raypack's glossy reflection is a "
-                         "normalised Phong lobe, which has no Mitsuba 3 plugin")
+    g = float(m["glossiness"])
     lobes = {"diffuse": [m["diffuse"] * c for c in color],
-             "mirror": [m["reflection"] * c for c in color],
+             "glossy" if g > 0 else "mirror": [m["reflection"] * c for c in color],
              "glass": [float(m["refraction"])] * 3}
     total = max(sum(w[c] for w in lobes.values()) for c in range(3))
     if total > 1:
@@ -240,7 +244,7 @@ def material(raw, where):
         raise SceneError(f"{where}: absorption: Beer's law inside glass is not translated")
     kind = present[0] if present else "black"
     return {"kind": kind, "weight": lobes.get(kind, [0.0] * 3), "ior": float(m["ior"]),
-            "emission": [float(e) for e in m["emission"]]}
+            "alpha": g / math.sqrt(1 + g * g), "emission": [float(e) for e in m["emission"]]}
 
 
 def mitsuba_bsdf(m):
@@ -253,6 +257,9 @@ def mitsuba_bsdf(m):
         return bsdf
     if m["kind"] == "mirror":
         inner = {"type": "conductor", "material": "none", "specular_reflectance": rgb}
+    elif m["kind"] == "glossy":
+        inner = {"type": "roughconductor", "material": "none", "distribution": "ggx",
+                 "alpha": m["alpha"], "sample_visible": True, "specular_reflectance": rgb}
     else:
         inner = {"type": "diffuse", "reflectance": rgb}
     return {"type": "twosided", "bsdf": inner}

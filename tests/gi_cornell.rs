@@ -333,11 +333,11 @@ fn gi_scene_files_load() {
         (grey.color * grey.diffuse, grey.emission),
         (Vec3::splat(0.5), Vec3::ZERO)
     );
-    // The Cornell box with a mirror sphere and a glass sphere.
+    // The Cornell box with a mirror sphere, a glass sphere and a glossy sphere.
     let spheres = raypack::scene::file::load(&dir.join("spheres.toml")).unwrap();
     assert_eq!(spheres.geometry.triangles.len(), 36);
-    assert_eq!(spheres.geometry.spheres.len(), 2);
-    let [mirror, glass] = [36, 37].map(|p| spheres.material(p));
+    assert_eq!(spheres.geometry.spheres.len(), 3);
+    let [mirror, glass, gold] = [36, 37, 38].map(|p| spheres.material(p));
     assert_eq!(
         (mirror.reflection, mirror.glossiness, mirror.diffuse),
         (1.0, 0.0, 0.0)
@@ -345,5 +345,9 @@ fn gi_scene_files_load() {
     assert_eq!(
         (glass.refraction, glass.ior, glass.diffuse),
         (1.0, 1.5, 0.0)
+    );
+    assert_eq!(
+        (gold.reflection, gold.glossiness, gold.diffuse),
+        (1.0, 0.3, 0.0)
     );
 }

@@ -27,7 +27,7 @@
 //! powers over the disc through the `k`-th overestimates by `k / (k - 1)`). When fewer
 //! than `k` photons lie within `max_radius`, all of them count over that disc. Only the
 //! Lambertian lobe reads the maps: at the camera's vertex the gather rays sample every
-//! non-delta lobe, Phong ones included, but where a gather ray ends only the Lambertian
+//! non-delta lobe, Phong and GGX ones included, but where a gather ray ends only the Lambertian
 //! reflection is estimated; a glossy lobe there is left out, a bias that vanishes in
 //! Lambertian scenes such as the Cornell box. [`GiScene::max_bounces`] caps the path
 //! tracer only; photon paths end by Russian roulette.
