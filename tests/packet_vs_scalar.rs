@@ -34,9 +34,10 @@ use raypack::accel::prims_packet::{
 use raypack::accel::triaccel::TriAccel;
 use raypack::accel::{TILE_RAYS, TileWidth};
 use raypack::ray::{Hit, NO_HIT, Ray};
+use raypack::scene::camera::{block_pixel, block_shape};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16, block_pixel};
+use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16};
 
 /// Draws the kernel tests need beyond [`Rng`]'s own.
 trait Draw {
@@ -524,7 +525,7 @@ fn block_packets<W: Simd>(
     aligned: bool,
 ) -> Vec<Vec<Ray>> {
     let frame = camera.frame(width, height);
-    let (bw, bh) = W::SHAPE;
+    let (bw, bh) = block_shape::<W>();
     common::quad_corners(width, height)
         .into_iter()
         .filter(|&(x, y)| x + bw <= width && y + bh <= height)

@@ -142,7 +142,7 @@ impl RaySet {
 pub fn packet_pixel(i: usize, width: u32) -> (u32, u32) {
     let tiles_x = (width / TILE) as usize;
     let (tile, quad) = (i / 256, (i % 256) / 4);
-    let (dx, dy) = crate::simd::quad_lane(i);
+    let (dx, dy) = crate::scene::camera::quad_lane(i);
     let x = (tile % tiles_x) * 16 + (quad % 8) * 2;
     let y = (tile / tiles_x) * 16 + (quad / 8) * 2;
     (x as u32 + dx, y as u32 + dy)

@@ -5,8 +5,8 @@
 //! `intersect_stream`/`occluded_stream` on each chunk as a whole.
 //!
 //! A packet of an image set in RAYS.md's packet order is the pixel block of its width's
-//! shape ([`crate::simd::Simd::SHAPE`]: 2x2, 4x2, 4x4), its lanes in
-//! [`crate::simd::block_pixel`]'s order: 4 and 8 consecutive rays already are such a
+//! shape ([`crate::scene::camera::block_shape`]: 2x2, 4x2, 4x4), its lanes in
+//! [`crate::scene::camera::block_pixel`]'s order: 4 and 8 consecutive rays already are such a
 //! block, 16 are gathered from two rows of quads (16 consecutive rays are an 8x2 strip,
 //! whose rays part ways sooner: a 4x4 block traces Sponza's camera rays 6% faster,
 //! perf/log/wide.md). A set that is not an image goes in packets of consecutive rays; lanes
@@ -21,7 +21,8 @@ use super::format::{RaySet, TILE, pixel_packet_index};
 use crate::accel::Mode;
 use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, TILE_RAYS, intersect_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{MAX_LANES, Simd, Uint, W4, W8, W16, block_pixel};
+use crate::scene::camera::{block_pixel, block_shape};
+use crate::simd::{MAX_LANES, Simd, Uint, W4, W8, W16};
 use rayon::prelude::*;
 use std::fmt;
 
@@ -58,10 +59,10 @@ impl Order {
 }
 
 /// For each packet of `W` lanes in a 16x16 tile of an image set, the tile's rays its
-/// lanes take: packet `p` is the `W::SHAPE` block `p` (blocks row-major), lane `i` its
+/// lanes take: packet `p` is the [`block_shape`] block `p` (blocks row-major), lane `i` its
 /// pixel [`block_pixel`] `i`.
 fn tile_lanes<W: Simd>() -> [u16; TILE_PIXELS] {
-    let (w, h) = W::SHAPE;
+    let (w, h) = block_shape::<W>();
     let blocks_x = TILE / w;
     std::array::from_fn(|k| {
         let (p, i) = ((k / W::LANES) as u32, k % W::LANES);
@@ -492,7 +493,8 @@ mod tests {
                 let (dx, dy) = block_pixel::<W>(i);
                 assert_eq!(packet_pixel(r, width), (x0 + dx, y0 + dy), "lane {i}");
             }
-            assert_eq!((x0 % W::SHAPE.0, y0 % W::SHAPE.1), (0, 0));
+            let (bw, bh) = block_shape::<W>();
+            assert_eq!((x0 % bw, y0 % bh), (0, 0));
         });
         assert!(seen.iter().all(|&n| n == 1));
     }

@@ -1,5 +1,5 @@
 //! render: packet shading. Camera blocks (2x2, 4x2 or 4x4 pixels, the shape of the
-//! width: [`crate::simd::Simd::SHAPE`]) and supersampling's sub-pixel samples are traced
+//! width: [`crate::scene::camera::block_shape`]) and supersampling's sub-pixel samples are traced
 //! as packets of the mode's width through [`PacketTrace::intersect_packet`] (the
 //! kd-tree's SIMD traversal);
 //! the mirror and refraction rays their lanes spawn are traced as packets again, down

@@ -7,8 +7,8 @@
 //! the pixels left of and above a tile instead of waiting for its neighbours.
 //!
 //! Camera rays are issued as pixel blocks of the mode's packet shape (2x2 in scalar and
-//! 4-lane mode, 4x2 at 8 lanes, 4x4 at 16: [`crate::simd::Simd::SHAPE`], lanes in the
-//! order of [`crate::simd::block_pixel`]) through [`shade_block`], and a supersampled
+//! 4-lane mode, 4x2 at 8 lanes, 4x4 at 16: [`crate::scene::camera::block_shape`], lanes in the
+//! order of [`crate::scene::camera::block_pixel`]) through [`shade_block`], and a supersampled
 //! pixel's samples through [`supersample`]. Those are the seams where the packet path
 //! plugs in: a [`Mode`] selects how they are traced and shaded; everything else here
 //! (tiling, adaptive refinement, counting) is shared.
@@ -19,8 +19,9 @@ use super::shade::{HitSignature, RayCounts, Shader};
 use super::shade_packet::{shade_block_packet, supersample_packet};
 use crate::accel::Accel;
 use crate::accel::Mode;
+use crate::scene::camera::block_pixel;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
-use crate::simd::{MAX_LANES, Simd, W4, W8, W16, block_pixel};
+use crate::simd::{MAX_LANES, Simd, W4, W8, W16};
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -1,8 +1,39 @@
 //! The look-at pinhole camera, with exactly the convention of RAYS.md.
 
 use crate::ray::Ray;
-use crate::simd::{Simd, block_pixel};
+use crate::simd::Simd;
 use glam::{DVec3, Vec3};
+
+/// Width and height of the pixel block a camera packet of `W` covers: 2x2 quads, two
+/// to a row (2x2 at 4 lanes, 4x2 at 8, 4x4 at 16). The one place a packet's shape is
+/// derived from its size.
+pub const fn block_shape<W: Simd>() -> (u32, u32) {
+    let quads = W::LANES as u32 / 4;
+    let per_row = if quads >= 2 { 2 } else { 1 };
+    (2 * per_row, 2 * (quads / per_row))
+}
+
+/// Pixel offset of lane `i` of a `W` camera packet inside its [`block_shape`] block: 2x2
+/// quads row-major inside the block, each quad in RAYS.md's lane order ((0,0), (1,0),
+/// (0,1), (1,1)). So lanes 0..4 are always a 2x2 quad and lanes 0..8 a 4x2 block, as
+/// any 4 or 8 consecutive rays of an image set in RAYS.md's packet order.
+#[inline(always)]
+pub fn block_pixel<W: Simd>(i: usize) -> (u32, u32) {
+    let quads_per_row = block_shape::<W>().0 as usize / 2;
+    let (q, (dx, dy)) = (i / 4, quad_lane(i));
+    (
+        (q % quads_per_row) as u32 * 2 + dx,
+        (q / quads_per_row) as u32 * 2 + dy,
+    )
+}
+
+/// Pixel offset of lane `i % 4` inside its 2x2 quad, in RAYS.md's order: (0,0), (1,0),
+/// (0,1), (1,1). The one definition of the quad, for packets and ray files alike.
+#[inline(always)]
+pub fn quad_lane(i: usize) -> (u32, u32) {
+    let p = (i % 4) as u32;
+    (p & 1, p >> 1)
+}
 
 /// A pinhole camera at `eye` looking at `target`, as a scene file or a benchmark's
 /// `cameras.toml` gives it; [`Camera::frame`] turns it into an orthonormal basis.
@@ -96,7 +127,7 @@ impl Camera {
 }
 
 impl CameraFrame {
-    /// The camera rays of the `W::SHAPE` pixel block whose top-left pixel is `(x, y)`,
+    /// The camera rays of the [`block_shape`] pixel block whose top-left pixel is `(x, y)`,
     /// ray `i` (a packet's lane `i`) through the centre of pixel `(x, y) +
     /// block_pixel(i)`: for 4 lanes RAYS.md's quad, `(x, y)`, `(x + 1, y)`, `(x, y + 1)`,
     /// `(x + 1, y + 1)`.
@@ -124,6 +155,43 @@ impl CameraFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::{W4, W8, W16};
+
+    fn blocks_cover_their_shape<W: Simd>() {
+        let (w, h) = block_shape::<W>();
+        assert_eq!((w * h) as usize, W::LANES);
+        let mut seen = vec![0; W::LANES];
+        for i in 0..W::LANES {
+            let (x, y) = block_pixel::<W>(i);
+            assert!(x < w && y < h);
+            seen[(y * w + x) as usize] += 1;
+        }
+        assert!(seen.iter().all(|&n| n == 1));
+        // The first four lanes are RAYS.md's quad.
+        assert_eq!(
+            (0..4).map(block_pixel::<W>).collect::<Vec<_>>(),
+            [(0, 0), (1, 0), (0, 1), (1, 1)]
+        );
+    }
+
+    /// The shape depends on the width alone, so the portable backends cover every
+    /// instruction set's.
+    #[test]
+    fn packet_shapes_cover_each_pixel_once() {
+        blocks_cover_their_shape::<W4>();
+        blocks_cover_their_shape::<W8>();
+        blocks_cover_their_shape::<W16>();
+        assert_eq!(
+            [
+                block_shape::<W4>(),
+                block_shape::<W8>(),
+                block_shape::<W16>()
+            ],
+            [(2, 2), (4, 2), (4, 4)]
+        );
+        assert_eq!(block_pixel::<W8>(4), (2, 0));
+        assert_eq!(block_pixel::<W16>(8), (0, 2));
+    }
 
     #[test]
     fn centre_pixel_looks_at_target_and_top_row_looks_up() {

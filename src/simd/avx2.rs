@@ -684,8 +684,6 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
-    (2, 2),
-    1,
     "4 lanes under AVX2: `wide`'s f32x4, VEX-encoded inside the AVX2 entry."
 );
 backend!(
@@ -696,8 +694,6 @@ backend!(
     U32x8,
     VBool<__m256>,
     8,
-    (4, 2),
-    2,
     "8 lanes in one AVX2 register."
 );
 backend!(
@@ -708,7 +704,5 @@ backend!(
     U32x16,
     Mask16,
     16,
-    (4, 4),
-    3,
     "16 lanes in two AVX2 registers."
 );

@@ -532,8 +532,6 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
-    (2, 2),
-    1,
     "4 lanes under AVX-512: `wide`'s f32x4 inside the AVX-512 entry."
 );
 backend!(
@@ -544,8 +542,6 @@ backend!(
     U32x8,
     <F32x8 as Float>::Mask,
     8,
-    (4, 2),
-    2,
     "8 lanes under AVX-512: the AVX2 register type inside the AVX-512 entry."
 );
 backend!(
@@ -556,7 +552,5 @@ backend!(
     U32x16,
     VBool<u16>,
     16,
-    (4, 4),
-    3,
     "16 lanes in one AVX-512 register, masks in `k` registers."
 );

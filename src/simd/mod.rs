@@ -20,18 +20,16 @@
 //! vector, so a mask cannot be passed where a value belongs; [`LaneBits`] holds one bit
 //! per lane of the widest packet.
 
-/// A backend marker: its lane count, pixel shape, scalar threshold, instruction set,
-/// entry (a function compiled for that set) and vector types.
+/// A backend marker: its lane count, instruction set, entry (a function compiled for
+/// that set) and vector types.
 macro_rules! backend {
-    ($vis:vis $w:ident, $isa:expr, $enter:path, $f:ty, $u:ty, $mask:ty, $n:literal, $shape:expr, $scalar_max:literal, $doc:literal) => {
+    ($vis:vis $w:ident, $isa:expr, $enter:path, $f:ty, $u:ty, $mask:ty, $n:literal, $doc:literal) => {
         #[doc = $doc]
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
         $vis struct $w;
 
         impl $crate::simd::Simd for $w {
             const LANES: usize = $n;
-            const SHAPE: (u32, u32) = $shape;
-            const SCALAR_GROUP_MAX: u32 = $scalar_max;
             const ISA: $crate::simd::Isa = $isa;
             type F = $f;
             type U = $u;
@@ -81,17 +79,12 @@ pub const MAX_LANES: usize = 16;
 
 const _: () = assert!(MAX_LANES <= LaneBits::BITS as usize);
 
-/// A SIMD backend: one width compiled for one instruction set, with its vector types and
-/// pixel shape.
+/// A SIMD backend: one width compiled for one instruction set, with its vector types.
+/// What a width means elsewhere lives with its concept: the pixel block of a camera
+/// packet in [`crate::scene::camera`], the traversal's knobs in the kd-tree's walks.
 pub trait Simd: Copy + Clone + Debug + Default + Send + Sync + 'static {
     /// Rays per packet.
     const LANES: usize;
-    /// Width and height of the pixel block a camera packet covers (2x2, 4x2, 4x4): the
-    /// only place the shape is derived from the size (see [`block_pixel`]).
-    const SHAPE: (u32, u32);
-    /// Groups of at most this many coherent lanes are traced as single rays: a packet
-    /// step costs about the same at every occupancy, a scalar step a fraction of it.
-    const SCALAR_GROUP_MAX: u32;
     /// The instruction set the backend's vector types are made of.
     const ISA: Isa;
     /// One f32 per lane.
@@ -358,28 +351,6 @@ pub trait LaneMask:
 #[derive(Clone, Copy, Debug)]
 pub struct VBool<V>(V);
 
-/// Pixel offset of lane `i` of a `W` camera packet inside its `W::SHAPE` block: 2x2
-/// quads row-major inside the block, each quad in RAYS.md's lane order ((0,0), (1,0),
-/// (0,1), (1,1)). So lanes 0..4 are always a 2x2 quad and lanes 0..8 a 4x2 block, as
-/// any 4 or 8 consecutive rays of an image set in RAYS.md's packet order.
-#[inline(always)]
-pub fn block_pixel<W: Simd>(i: usize) -> (u32, u32) {
-    let quads_per_row = W::SHAPE.0 as usize / 2;
-    let (q, (dx, dy)) = (i / 4, quad_lane(i));
-    (
-        (q % quads_per_row) as u32 * 2 + dx,
-        (q / quads_per_row) as u32 * 2 + dy,
-    )
-}
-
-/// Pixel offset of lane `i % 4` inside its 2x2 quad, in RAYS.md's order: (0,0), (1,0),
-/// (0,1), (1,1). The one definition of the quad, for packets and ray files alike.
-#[inline(always)]
-pub fn quad_lane(i: usize) -> (u32, u32) {
-    let p = (i % 4) as u32;
-    (p & 1, p >> 1)
-}
-
 /// `f` itself. Rust takes `#[inline(always)]` on a closure only where it is an argument,
 /// so a kernel names its closures through this. Kernels mark every closure so: one
 /// that LLVM keeps out of line is compiled for the baseline, not for the kernel's
@@ -565,30 +536,6 @@ mod tests {
     #[test]
     fn masks_round_trip_through_bits() {
         each_backend!(|B, P| masks_round_trip::<B>());
-    }
-
-    fn blocks_cover_their_shape<W: Simd>() {
-        let (w, h) = W::SHAPE;
-        assert_eq!((w * h) as usize, W::LANES);
-        let mut seen = vec![0; W::LANES];
-        for i in 0..W::LANES {
-            let (x, y) = block_pixel::<W>(i);
-            assert!(x < w && y < h);
-            seen[(y * w + x) as usize] += 1;
-        }
-        assert!(seen.iter().all(|&n| n == 1));
-        // The first four lanes are RAYS.md's quad.
-        assert_eq!(
-            (0..4).map(block_pixel::<W>).collect::<Vec<_>>(),
-            [(0, 0), (1, 0), (0, 1), (1, 1)]
-        );
-    }
-
-    #[test]
-    fn packet_shapes_cover_each_pixel_once() {
-        each_backend!(|B, P| blocks_cover_their_shape::<B>());
-        assert_eq!(block_pixel::<W8>(4), (2, 0));
-        assert_eq!(block_pixel::<W16>(8), (0, 2));
     }
 
     fn min_max_order<W: Simd>() {

@@ -251,8 +251,6 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
-    (2, 2),
-    1,
     "4 lanes, portable (`wide`'s f32x4; SSE): the Wald packet."
 );
 backend!(
@@ -263,8 +261,6 @@ backend!(
     wide::u32x8,
     VBool<wide::f32x8>,
     8,
-    (4, 2),
-    2,
     "8 lanes, portable (`wide`'s f32x8: two SSE registers in a baseline build)."
 );
 backend!(
@@ -275,7 +271,5 @@ backend!(
     wide::u32x16,
     VBool<wide::f32x16>,
     16,
-    (4, 4),
-    3,
     "16 lanes, portable (`wide`'s f32x16: four SSE registers in a baseline build)."
 );

@@ -17,8 +17,8 @@
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and
 //!   traced one group after the other; [`packet_split_count`] counts them. A group of
-//!   at most [`Simd::SCALAR_GROUP_MAX`] lanes takes the scalar traversal lane by lane,
-//!   whose answer is the same.
+//!   at most `scalar_group_max` lanes (1 of 4, 2 of 8, 3 of 16) takes the scalar
+//!   traversal lane by lane, whose answer is the same.
 //! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
 //!   [`crate::accel::prims_packet`], bit-identical to the scalar tests, and merge in
 //!   [`crate::ray::Hit::is_closer`] order; a stack entry is dropped for the lanes whose
@@ -122,13 +122,24 @@ pub(super) fn coherent_groups<W: Simd>(
     (groups, count)
 }
 
+/// Groups of at most this many coherent lanes of a `W` packet are traced as single
+/// rays: a packet step costs about the same at every occupancy, a scalar step a
+/// fraction of it (1 of 4 lanes, 2 of 8, 3 of 16).
+const fn scalar_group_max<W: Simd>() -> u32 {
+    match W::LANES {
+        4 => 1,
+        8 => 2,
+        _ => 3,
+    }
+}
+
 /// Whether a group is traced lane by lane with the scalar traversal: a group of at most
-/// [`Simd::SCALAR_GROUP_MAX`] lanes, which gives the same answer bit for bit (the packet
+/// [`scalar_group_max`] lanes, which gives the same answer bit for bit (the packet
 /// path's invariant) for less work than a packet step with most lanes masked off.
 /// Incoherent packets (cosine bounces) split into several groups, most of them small.
 #[inline(always)]
 fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
-    group.count_ones() <= W::SCALAR_GROUP_MAX
+    group.count_ones() <= scalar_group_max::<W>()
 }
 
 impl KdTree {
