@@ -23,8 +23,7 @@ use common::{
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::PacketWidth;
-use raypack::accel::kdtree::traverse_packet::packet_split_count;
-use raypack::accel::kdtree::traverse_tile::tile_counts;
+use raypack::accel::kdtree::stats;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::accel::packet::{HitPacket, LaneHits, RayPacket};
 use raypack::accel::prims::{intersect_box, intersect_plane, intersect_sphere};
@@ -477,10 +476,11 @@ fn assert_tree_matches<W: PacketWidth>(
 
 /// Closest hits and any-hit answers of `tree`'s ray tiles ([`TILE_RAYS`] consecutive
 /// rays of `rays`, groups of `W::LANES` sharing an entry point) against its scalar path.
-/// Returns the nodes the tiles descended together (their entry depths), summed.
+/// Returns the nodes the tiles descended together (their entry depths), summed (zero
+/// without the `stats` feature).
 fn assert_tiles_match<W: TileWidth>(tree: &KdTree, rays: &[Ray], what: &str) -> u64 {
     let what = &format!("{what} (tiles of {} lanes)", W::LANES);
-    let before = tile_counts();
+    let before = stats::counts();
     for (n, tile) in rays.chunks(TILE_RAYS).enumerate() {
         let mut got = vec![Hit::MISS; tile.len()];
         tree.intersect_tile::<W>(tile, &mut got);
@@ -492,7 +492,7 @@ fn assert_tiles_match<W: TileWidth>(tree: &KdTree, rays: &[Ray], what: &str) -> 
         let past = occluded.checked_shr(tile.len() as u32).unwrap_or(0);
         assert_eq!(past, 0, "{what}: bits past the tile");
     }
-    tile_counts().entry_depth - before.entry_depth
+    stats::counts().tile_entry_depth - before.tile_entry_depth
 }
 
 /// The rays of packets (active lanes only), in order.
@@ -649,15 +649,16 @@ fn check_tree_scene_at<W: TileChecks>(
     if g.bounded_count() > 0 {
         assert!(hits > quads.len() / 20, "{what}: only {hits} camera hits");
     }
-    let splits_before = packet_split_count();
+    let splits_before = stats::counts().packet_splits;
     let random = random_rays(b.min, b.max, count, seed);
     assert_tree_matches::<W>(
         &tree,
         &packets_of::<W>(&random, Some(&mut rng)),
         &format!("{what}, random"),
     );
+    // The counters are there with the `stats` feature only.
     assert!(
-        packet_split_count() > splits_before,
+        !stats::ENABLED || stats::counts().packet_splits > splits_before,
         "{what}: no mixed-sign packet was split"
     );
     let adversarial = adversarial_rays(&tree, g, count, seed + 1);
@@ -792,14 +793,16 @@ fn check_shared_scene_at<W: TileChecks>(
     if W::LANES >= 8 {
         let flat: Vec<Ray> = quads.iter().flatten().copied().collect();
         let depth = W::tiles_match(tree, &flat, &format!("{name}, camera")).unwrap_or(0);
-        println!(
-            "{name}, {} lanes: camera tiles descended {depth} nodes together",
-            W::LANES
-        );
-        assert!(
-            depth > 0,
-            "{name}: no camera tile shared an entry point below the root"
-        );
+        if stats::ENABLED {
+            println!(
+                "{name}, {} lanes: camera tiles descended {depth} nodes together",
+                W::LANES
+            );
+            assert!(
+                depth > 0,
+                "{name}: no camera tile shared an entry point below the root"
+            );
+        }
         W::tiles_match(tree, &flatten(&shadows), &format!("{name}, shadows"));
     }
     let mut rng = Rng::new(name.len() as u64);

@@ -13,7 +13,6 @@ use raypack::accel::Accel;
 use raypack::accel::Mode;
 use raypack::accel::TILE_RAYS;
 use raypack::accel::kdtree::stats::{self, TraversalCounts};
-use raypack::accel::kdtree::traverse_tile::{TileCounts, tile_counts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::ray::Ray;
 use raypack::rayset::trace::{Order, Query, checksum_set, sign_split_packets};
@@ -269,13 +268,6 @@ fn pinned_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
         .context("starting the tracing threads")
 }
 
-/// The tile counts of every thread of `pool`, summed.
-fn pool_tile_counts(pool: &rayon::ThreadPool) -> TileCounts {
-    pool.broadcast(|_| tile_counts())
-        .into_iter()
-        .fold(TileCounts::default(), TileCounts::plus)
-}
-
 /// The traversal counters of every thread of `pool`, summed (zero without the `stats`
 /// feature).
 fn pool_traversal_counts(pool: &rayon::ThreadPool) -> TraversalCounts {
@@ -301,10 +293,9 @@ pub struct Measured {
     /// Mrays/s, in pass order.
     pub rates: Vec<f64>,
     pub checksum: Checksum,
-    /// The traversal counters (`stats` feature) and tile counts of this tree's passes
-    /// alone, the warm-up pass included.
+    /// The traversal counters (`stats` feature) of this tree's passes alone, the
+    /// warm-up pass included.
     pub work: TraversalCounts,
-    pub tiles: TileCounts,
 }
 
 /// One measurement of each of `accels` (one tree, or two with `--compare-tree`): a
@@ -322,12 +313,11 @@ pub fn measure<A: Accel>(
 ) -> Vec<Measured> {
     // One pass of `accel`, its time, and the counts it added to `m`.
     let pass = |accel: &A, m: &mut Measured| {
-        let (work, tiles) = (pool_traversal_counts(pool), pool_tile_counts(pool));
+        let work = pool_traversal_counts(pool);
         let start = Instant::now();
         let c = std::hint::black_box(pool.install(|| checksum_set(accel, set, mode, query)));
         let seconds = start.elapsed().as_secs_f64();
         m.work = m.work.plus(pool_traversal_counts(pool).since(work));
-        m.tiles = m.tiles.plus(pool_tile_counts(pool).since(tiles));
         (c, seconds)
     };
     let mut out: Vec<Measured> = accels
@@ -525,13 +515,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                             w.prim_tests as f64 / rays
                         ));
                     }
-                    if mode == Mode::Tile64 {
-                        let tiles = m.tiles.tiles.max(1) as f64;
+                    if stats::ENABLED && mode == Mode::Tile64 {
+                        let tiles = m.work.tiles.max(1) as f64;
                         tile_notes.push(format!(
                             "{name} {}{which}: {:.1}% of tiles traced per group (mixed signs or one group), mean entry depth {:.1} nodes",
                             super::count(*t, "thread"),
-                            100.0 * m.tiles.fallbacks as f64 / tiles,
-                            m.tiles.entry_depth as f64 / tiles
+                            100.0 * m.work.tile_fallbacks as f64 / tiles,
+                            m.work.tile_entry_depth as f64 / tiles
                         ));
                     }
                 }

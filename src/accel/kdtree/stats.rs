@@ -1,10 +1,13 @@
-//! Stage: accel. Traversal counters: inner-node steps, leaf visits and primitive tests,
-//! per thread, for `raypack bench` to report per ray and mode. A packet or tile group
-//! counts one step per node it visits, whatever its number of active lanes, so the
-//! counts per ray show how much work a packet shares.
+//! Stage: accel. Traversal counters, per thread, for `raypack bench` to report per ray
+//! and mode: inner-node steps, leaf visits and primitive tests; packets split by
+//! direction signs; ray tiles, their fallbacks to packets and their entry depths. A
+//! packet or tile group counts one step per node it visits, whatever its number of
+//! active lanes, so the counts per ray show how much work a packet shares. Every
+//! traversal counter of the kd-tree lives here.
 //!
 //! Compiled in only with the `stats` feature (`cargo build --release --features
-//! stats`): without it [`bump`] is empty and the kernels are unchanged.
+//! stats`): without it [`bump`] is empty, [`counts`] is zero and the kernels are
+//! unchanged.
 
 /// Work done by the traversals of one thread.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -15,11 +18,21 @@ pub struct TraversalCounts {
     pub leaf_visits: u64,
     /// Primitive tests run.
     pub prim_tests: u64,
+    /// Packets whose lanes disagreed on a direction sign and were split into coherent
+    /// groups (`traverse_packet`).
+    pub packet_splits: u64,
+    /// Ray tiles traced (`traverse_tile`).
+    pub tiles: u64,
+    /// Tiles whose rays disagree on a direction sign (or fit in one group), traced one
+    /// packet per group.
+    pub tile_fallbacks: u64,
+    /// Sum over tiles of the nodes passed for the whole tile at once.
+    pub tile_entry_depth: u64,
 }
 
 /// `since` (`self - earlier`) and `plus` (the sum), field by field, for a struct of
-/// counters named with its fields: the one definition of both for every kind of
-/// counts (a field left out of the list is a missing field, a compile error).
+/// counters named with its fields (a field left out of the list is a missing field, a
+/// compile error).
 macro_rules! field_wise {
     ($t:ident { $($f:ident),+ $(,)? }) => {
         impl $t {
@@ -35,12 +48,14 @@ macro_rules! field_wise {
         }
     };
 }
-pub(super) use field_wise;
-
 field_wise!(TraversalCounts {
     node_steps,
     leaf_visits,
-    prim_tests
+    prim_tests,
+    packet_splits,
+    tiles,
+    tile_fallbacks,
+    tile_entry_depth
 });
 
 /// Whether the counters are compiled in.
@@ -49,7 +64,15 @@ pub const ENABLED: bool = cfg!(feature = "stats");
 #[cfg(feature = "stats")]
 thread_local! {
     static COUNTS: std::cell::Cell<TraversalCounts> =
-        const { std::cell::Cell::new(TraversalCounts { node_steps: 0, leaf_visits: 0, prim_tests: 0 }) };
+        const { std::cell::Cell::new(TraversalCounts {
+            node_steps: 0,
+            leaf_visits: 0,
+            prim_tests: 0,
+            packet_splits: 0,
+            tiles: 0,
+            tile_fallbacks: 0,
+            tile_entry_depth: 0,
+        }) };
 }
 
 /// Applies `f` to this thread's counters (nothing without the `stats` feature).

@@ -16,7 +16,7 @@
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and
-//!   traced one group after the other; [`packet_split_count`] counts them. A group of
+//!   traced one group after the other (counted in [`super::stats`]). A group of
 //!   at most `scalar_group_max` lanes (1 of 4, 2 of 8, 3 of 16) takes the scalar
 //!   traversal lane by lane, whose answer is the same.
 //! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
@@ -36,18 +36,6 @@ use crate::simd::{
     AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, max_abs,
     prefetch,
 };
-use std::cell::Cell;
-
-thread_local! {
-    static PACKET_SPLITS: Cell<u64> = const { Cell::new(0) };
-}
-
-/// Packets traced on this thread whose lanes disagreed on a direction sign and were
-/// split into coherent groups.
-#[inline(always)]
-pub fn packet_split_count() -> u64 {
-    PACKET_SPLITS.with(Cell::get)
-}
 
 /// One pending far child: its node, the lanes that need it, and their interval.
 #[derive(Clone, Copy)]
@@ -106,7 +94,7 @@ pub(super) fn clip_to_box_packet<W: Simd>(
 }
 
 /// Lane groups of `active` that agree on every direction sign, counting the packets
-/// that had to be split ([`packet_split_count`]).
+/// that had to be split ([`super::stats::TraversalCounts::packet_splits`]).
 #[inline(always)]
 pub(super) fn coherent_groups<W: Simd>(
     rays: &RayPacket<W>,
@@ -114,9 +102,9 @@ pub(super) fn coherent_groups<W: Simd>(
 ) -> ([LaneBits; 8], usize) {
     let (groups, count) = rays.sign_groups(active);
     if count > 1 {
-        PACKET_SPLITS.with(
+        bump(
             #[inline(always)]
-            |c| c.set(c.get() + 1),
+            |c| c.packet_splits += 1,
         );
     }
     (groups, count)

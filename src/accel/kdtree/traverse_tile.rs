@@ -29,7 +29,7 @@
 //! near child), and a group with no lane on a side rides along masked off.
 //! Tiles whose lanes disagree on a direction sign, have a zero or non-invertible
 //! direction component, or fit in one group skip the descent and trace each group as an
-//! ordinary packet; [`tile_counts`] reports how often.
+//! ordinary packet; [`super::stats`] counts how often.
 
 use super::KdTree;
 use super::stats::bump;
@@ -38,51 +38,22 @@ use super::traverse_packet::clip_to_box_packet;
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs};
-use std::cell::Cell;
 
 use crate::accel::{TILE_RAYS, TileWidth};
 
 /// Groups of the narrowest width a tile is made of (8 lanes).
 const MAX_GROUPS: usize = TILE_RAYS / 8;
 
-/// Tiles traced on one thread: how many, how many fell back to packets per group, and
-/// the sum of their entry depths (nodes passed for the whole tile at once).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TileCounts {
-    /// Tiles traced.
-    pub tiles: u64,
-    /// Tiles whose rays disagree on a direction sign, traced one packet per group.
-    pub fallbacks: u64,
-    /// Sum over tiles of the nodes passed for the whole tile at once.
-    pub entry_depth: u64,
-}
-
-super::stats::field_wise!(TileCounts {
-    tiles,
-    fallbacks,
-    entry_depth
-});
-
-thread_local! {
-    static COUNTS: Cell<TileCounts> = const { Cell::new(TileCounts { tiles: 0, fallbacks: 0, entry_depth: 0 }) };
-}
-
-/// The tiles traced on this thread so far.
-#[inline(always)]
-pub fn tile_counts() -> TileCounts {
-    COUNTS.with(Cell::get)
-}
-
+/// Counts a tile ([`super::stats`]): whether it fell back to packets per group, and
+/// the nodes it passed as a whole.
 #[inline(always)]
 fn count(fallback: bool, depth: u64) {
-    COUNTS.with(
+    bump(
         #[inline(always)]
         |c| {
-            let mut v = c.get();
-            v.tiles += 1;
-            v.fallbacks += fallback as u64;
-            v.entry_depth += depth;
-            c.set(v);
+            c.tiles += 1;
+            c.tile_fallbacks += fallback as u64;
+            c.tile_entry_depth += depth;
         },
     );
 }
