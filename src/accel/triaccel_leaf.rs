@@ -1,7 +1,9 @@
 //! One ray against several TriAccel records at once: lanes are triangles (the leaf
-//! kernel of the kd-tree's lane walks). Each lane repeats [`super::triaccel::TriAccel::intersect`]
-//! operation by operation with the ray's components picked by the lane's axis `k`, so
-//! its `t`, `u`, `v` and edge bound are the scalar ones bit for bit; the lanes are then
+//! kernel of the kd-tree's lane walks): [`Prims::intersect_tris_lanes`], the lane twin
+//! of [`Prims::intersect_leaf`] (in [`crate::accel::prims`]) for a leaf's triangles.
+//! Each lane repeats [`super::triaccel::TriAccel::intersect`] operation by operation
+//! with the ray's components picked by the lane's axis `k`, so its `t`, `u`, `v` and
+//! edge bound are the scalar ones bit for bit; the lanes are then
 //! folded into the closest hit in leaf order with the limit the scalar loop would have
 //! used for each, and lanes within the bound of an edge run the scalar exact rule.
 //! The records are read a 16-byte row at a time and transposed ([`Float::from_rows4`])
@@ -235,25 +237,5 @@ mod tests {
     #[test]
     fn sixteen_lanes_match_scalar() {
         lanes_match_scalar::<W16>();
-    }
-
-    /// [`Prims::triangles_only`] (which lets the lane walks skip checking a leaf's
-    /// slots) holds for triangles and planes, and not once a sphere or a box is added.
-    #[test]
-    fn triangles_only_means_no_sphere_or_box() {
-        let mut g = geometry();
-        g.planes.push(crate::geom::Plane {
-            normal: Vec3::Y,
-            offset: 0.0,
-        });
-        assert!(Prims::new(&g).triangles_only());
-        let mut with_sphere = g.clone();
-        with_sphere.spheres.push(crate::geom::Sphere {
-            center: Vec3::ZERO,
-            radius: 1.0,
-        });
-        assert!(!Prims::new(&with_sphere).triangles_only());
-        g.boxes.push(crate::geom::Aabb::new(Vec3::ZERO, Vec3::ONE));
-        assert!(!Prims::new(&g).triangles_only());
     }
 }

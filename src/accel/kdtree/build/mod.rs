@@ -645,7 +645,11 @@ mod tests {
         let mut seen = vec![false; g.triangles.len()];
         for (slot, r) in p.tris.iter().enumerate() {
             assert!(!std::mem::replace(&mut seen[r.id() as usize], true));
-            assert_eq!(*r, crate::accel::TriAccel::of(&g, r.id()), "slot {slot}");
+            assert_eq!(
+                *r,
+                crate::accel::triaccel::TriAccel::of(&g, r.id()),
+                "slot {slot}"
+            );
             assert_eq!(p.corners[slot], g.triangle(r.id()), "slot {slot}");
         }
         tree.validate().expect("valid tree");
