@@ -13,7 +13,7 @@ pub const NO_HIT: u32 = u32::MAX;
 
 /// A ray segment: points `org + t * dir` for `t_min < t < t_max`. `repr(C)`: eight
 /// f32 in the order of [`Ray::as_records`], so packets load rays as whole records.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct Ray {
     /// Origin, the point at `t = 0`.
@@ -40,9 +40,8 @@ impl Ray {
     /// copy: the input of [`crate::simd::Float::transpose8`].
     #[inline]
     pub fn as_records(rays: &[Ray]) -> &[[f32; 8]] {
-        // SAFETY: `Ray` is `repr(C)`, 32 bytes of eight f32 at the offsets asserted
-        // above, with no padding, and `[f32; 8]` has the same size and alignment (4).
-        unsafe { std::slice::from_raw_parts(rays.as_ptr().cast::<[f32; 8]>(), rays.len()) }
+        // `Ray` is `Pod`: eight f32 at the offsets asserted above, no padding.
+        bytemuck::cast_slice(rays)
     }
 
     /// The segment `org + t * dir`, `t_min < t < t_max`; nothing is checked (see
@@ -90,7 +89,7 @@ pub const DIR_MAX: f32 = (1u64 << 63) as f32 * 2.0;
 /// A ray-primitive intersection. `u`, `v` are barycentric weights of a triangle's
 /// second and third vertex (zero for other primitives). `repr(C)`: four 4-byte words, so
 /// packets store their hits as whole records ([`Hit::as_records_mut`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct Hit {
     /// Ray parameter of the hit point, in multiples of the ray's `dir`; `+inf` on a miss.
@@ -115,10 +114,8 @@ impl Hit {
     /// without a copy: the output of [`crate::simd::Float::transpose4_into`].
     #[inline]
     pub fn as_records_mut(hits: &mut [Hit]) -> &mut [[f32; 4]] {
-        // SAFETY: `Hit` is `repr(C)`, 16 bytes of four 4-byte words at the offsets
-        // asserted above, with no padding, and `[f32; 4]` has the same size and
-        // alignment (4); every bit pattern is valid for both f32 and u32.
-        unsafe { std::slice::from_raw_parts_mut(hits.as_mut_ptr().cast::<[f32; 4]>(), hits.len()) }
+        // `Hit` is `Pod`: four 4-byte words at the offsets asserted above, no padding.
+        bytemuck::cast_slice_mut(hits)
     }
 
     /// The value of a miss: `t = +inf`, `prim = NO_HIT`.

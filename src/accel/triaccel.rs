@@ -107,7 +107,7 @@ pub fn exact_rule(ray: &Ray, t_max: f32, corners: &[Vec3; 3]) -> Option<(f32, f3
 /// - `u = h_u b_nu + h_v b_nv + b_d` is the weight of the second vertex;
 /// - `v = h_u c_nu + h_v c_nv + c_d` is the weight of the third vertex.
 #[repr(C, align(16))]
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct TriAccel {
     /// Normal's `u` component over its `k` component.
     pub n_u: f32,
@@ -155,9 +155,8 @@ impl TriAccel {
     /// `c_nu c_nv c_d mag`; `k_id` as float bits), for loads of a whole row at a time.
     #[inline(always)]
     pub fn rows(&self) -> &[[f32; 4]; 3] {
-        // SAFETY: the record is `repr(C)`, twelve 4-byte fields without padding (48
-        // bytes, asserted above) and aligned to 16; every bit pattern is a valid f32.
-        unsafe { &*(self as *const TriAccel).cast::<[[f32; 4]; 3]>() }
+        // `TriAccel` is `Pod`: twelve 4-byte fields, no padding (the derive checks it).
+        bytemuck::cast_ref(self)
     }
 
     /// The id of the triangle.

@@ -24,7 +24,7 @@ const LEAF: u32 = 3;
 /// One node in 8 bytes: the split position and a word holding the axis (or the leaf
 /// mark) in 2 bits and a 30-bit child-pair or leaf index. Eight fit a cache line.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct KdNode {
     /// Split position (inner nodes); for a leaf, 0 or (once ranged) the bits of its
     /// primitive count.
@@ -135,10 +135,8 @@ impl KdNode {
 /// table the lane walks gather from (traverse_lanes.rs).
 #[inline(always)]
 pub fn as_words(nodes: &[KdNode]) -> &[u32] {
-    // SAFETY: `KdNode` is `repr(C)` with two 4-byte fields and no padding (its size is
-    // asserted above), so `n` nodes are `2 n` initialized, 4-byte aligned words, and
-    // every bit pattern is a valid `u32`. The borrow keeps `nodes` alive and unchanged.
-    unsafe { std::slice::from_raw_parts(nodes.as_ptr().cast::<u32>(), 2 * nodes.len()) }
+    // `KdNode` is `Pod`: two 4-byte fields, no padding (the derive checks it).
+    bytemuck::cast_slice(nodes)
 }
 
 /// The words of one node per lane ([`as_words`]'s odd words), decoded in SIMD: the one
