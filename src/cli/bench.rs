@@ -24,12 +24,15 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The accelerator `bench`, `trace` and `rays` trace through.
-pub type BenchAccel = KdTree;
-
-/// Builds the accelerator of `geometry` (on the global rayon pool: every core unless
-/// `RAYON_NUM_THREADS` says otherwise); returns it and the build time in seconds.
-pub fn build_accel(geometry: &Geometry, params: &BuildParams) -> (BenchAccel, f64) {
+/// Builds the accelerator `bench`, `trace` and `rays` trace through, the kd-tree of
+/// `geometry` (on the global rayon pool: every core unless `RAYON_NUM_THREADS` says
+/// otherwise); returns it and the build time in seconds.
+///
+/// This and [`prepare`] are where the commands name the concrete [`KdTree`]: its build
+/// takes the tree flags' [`BuildParams`], and `--compare-tree` prints both trees' node
+/// counts. Everything they trace goes through [`Accel`] ([`measure`], `checksum_set`,
+/// `trace_hits`, `standard_sets` are generic over it), statically dispatched.
+pub fn build_accel(geometry: &Geometry, params: &BuildParams) -> (KdTree, f64) {
     let start = Instant::now();
     let accel = KdTree::build_with(geometry, params);
     (accel, start.elapsed().as_secs_f64())
@@ -41,7 +44,7 @@ pub fn prepare(
     width: u32,
     height: u32,
     params: &BuildParams,
-) -> anyhow::Result<(BenchAccel, f64, StandardSets)> {
+) -> anyhow::Result<(KdTree, f64, StandardSets)> {
     let (accel, build_seconds) = build_accel(&scene.geometry, params);
     let sets = standard::standard_sets(&accel, &scene.geometry, &scene.view, width, height, None)?;
     Ok((accel, build_seconds, sets))
@@ -410,7 +413,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             accel.nodes().len()
         );
     }
-    let trees: Vec<&BenchAccel> = std::iter::once(&accel)
+    let trees: Vec<&KdTree> = std::iter::once(&accel)
         .chain(second.as_ref().map(|(tree, _)| tree))
         .collect();
     outln!(
