@@ -1,6 +1,7 @@
 //! Global illumination against closed forms: the white furnace, irradiance under a small
 //! area light and a point light, a mirror, a glossy plane under the sky, a glass slab
-//! (with and without Beer's law), and the energy each bounce adds. Both integrators where the closed form applies to both.
+//! (with and without Beer's law), and the energy each bounce adds. Both integrators
+//! where the closed form applies to both.
 //!
 //! Every Monte Carlo check measures its own noise: `estimate` returns the mean of `n`
 //! samples and its standard error `sqrt(var / n)` from the samples' variance (exact for
@@ -84,6 +85,19 @@ fn quad(g: &mut Geometry, mat: &mut Vec<u32>, m: u32, [a, b, c, d]: [Vec3; 4]) {
     g.triangles.push([base, base + 1, base + 2]);
     g.triangles.push([base, base + 2, base + 3]);
     mat.extend([m, m]);
+}
+
+/// The corners of the square of half-side `half` around the y axis at height `y`, for
+/// [`quad`]: winding normal `+y` when `up`, else `-y`.
+fn horizontal_square(y: f32, half: f32, up: bool) -> [Vec3; 4] {
+    let c = [
+        Vec3::new(-half, y, -half),
+        Vec3::new(-half, y, half),
+        Vec3::new(half, y, half),
+        Vec3::new(half, y, -half),
+    ];
+    // Listed clockwise seen from above: normal +y.
+    if up { c } else { [c[0], c[3], c[2], c[1]] }
 }
 
 /// An axis-aligned box of half-side `h` around the origin, every face's winding normal
@@ -314,30 +328,19 @@ fn irradiance_under_a_small_area_light(shift: Vec3) {
     let mut g = Geometry::default();
     let mut mat = Vec::new();
     let big = 50.0;
+    let shifted = |c: [Vec3; 4]| c.map(|v| v + shift);
     quad(
         &mut g,
         &mut mat,
         0,
-        [
-            Vec3::new(-big, 0.0, -big),
-            Vec3::new(-big, 0.0, big),
-            Vec3::new(big, 0.0, big),
-            Vec3::new(big, 0.0, -big),
-        ]
-        .map(|v| v + shift),
+        shifted(horizontal_square(0.0, big, true)),
     );
     let s2 = side / 2.0;
     quad(
         &mut g,
         &mut mat,
         1,
-        [
-            Vec3::new(-s2, h, -s2),
-            Vec3::new(s2, h, -s2),
-            Vec3::new(s2, h, s2),
-            Vec3::new(-s2, h, s2),
-        ]
-        .map(|v| v + shift),
+        shifted(horizontal_square(h, s2, false)),
     );
     assert!(g.geometric_normal(0, Vec3::ZERO).y > 0.0 && g.geometric_normal(2, Vec3::ZERO).y < 0.0);
     let s = scene(
@@ -495,7 +498,7 @@ fn a_mirror_reflects_its_colour_of_what_it_sees() {
     both_integrators(&s, &ray, 200, "mirror", Vec3::new(c.x, 0.0, 0.0), 0.01);
 }
 
-/// The directional albedo `integral f(wo, wi) cos_i dwi` of `bsdf` (normal `+z`) by the
+/// The directional albedo `integral f(wo, wi) cos_i dwi` of `bsdf` (normal `+y`) by the
 /// midpoint rule on a `steps x steps` grid of `(cos_i, phi)`, in f64.
 fn directional_albedo(bsdf: &Bsdf, wo: Vec3, steps: u32) -> Vec3 {
     let mut sum = [0f64; 3];
@@ -505,7 +508,7 @@ fn directional_albedo(bsdf: &Bsdf, wo: Vec3, steps: u32) -> Vec3 {
         let s = (1.0 - mu * mu).sqrt();
         for j in 0..steps {
             let phi = std::f64::consts::TAU * (j as f64 + 0.5) * h;
-            let wi = Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, mu as f32);
+            let wi = Vec3::new((s * phi.cos()) as f32, mu as f32, (s * phi.sin()) as f32);
             let f = bsdf.eval(wo, wi);
             for c in 0..3 {
                 sum[c] += f[c] as f64 * mu;
@@ -539,23 +542,12 @@ fn a_glossy_plane_under_the_sky_reflects_its_directional_albedo() {
         };
         let mut g = Geometry::default();
         let mut mat = Vec::new();
-        let r = 100.0;
-        quad(
-            &mut g,
-            &mut mat,
-            0,
-            [
-                Vec3::new(-r, -r, 0.0),
-                Vec3::new(r, -r, 0.0),
-                Vec3::new(r, r, 0.0),
-                Vec3::new(-r, r, 0.0),
-            ],
-        );
+        quad(&mut g, &mut mat, 0, horizontal_square(0.0, 100.0, true));
         let s = scene(g, mat, vec![glossy.clone()]);
         let accel = KdTree::build(&s.geometry);
-        let bsdf = Bsdf::new(&glossy, c, Vec3::Z, true);
+        let bsdf = Bsdf::new(&glossy, c, Vec3::Y, true);
         for theta in [0.3f32, 1.1] {
-            let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+            let wo = Vec3::new(theta.sin(), theta.cos(), 0.0);
             let want = directional_albedo(&bsdf, wo, 1500);
             let ray = Ray::new(wo * 5.0, -wo, 0.0, f32::INFINITY);
             for kind in [SamplerKind::Sobol, SamplerKind::Independent] {
@@ -645,20 +637,10 @@ fn caustics_through_a_glass_slab_agree_between_path_and_photon() {
     let mut g = Geometry::default();
     let mut mat = Vec::new();
     let big = 20.0;
-    let at_y = |y: f32, up: bool, half: f32| {
-        let c = [
-            Vec3::new(-half, y, -half),
-            Vec3::new(-half, y, half),
-            Vec3::new(half, y, half),
-            Vec3::new(half, y, -half),
-        ];
-        // Listed clockwise seen from above: normal +y.
-        if up { c } else { [c[0], c[3], c[2], c[1]] }
-    };
-    quad(&mut g, &mut mat, 0, at_y(0.0, true, big));
-    quad(&mut g, &mut mat, 1, at_y(1.0, false, big));
-    quad(&mut g, &mut mat, 1, at_y(1.3, true, big));
-    quad(&mut g, &mut mat, 2, at_y(4.0, false, 1.0));
+    quad(&mut g, &mut mat, 0, horizontal_square(0.0, big, true));
+    quad(&mut g, &mut mat, 1, horizontal_square(1.0, big, false));
+    quad(&mut g, &mut mat, 1, horizontal_square(1.3, big, true));
+    quad(&mut g, &mut mat, 2, horizontal_square(4.0, 1.0, false));
     assert!(g.geometric_normal(0, Vec3::ZERO).y > 0.0);
     assert!(g.geometric_normal(6, Vec3::ZERO).y < 0.0);
     let glass = clear_glass();

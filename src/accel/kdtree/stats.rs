@@ -30,12 +30,15 @@ pub struct TraversalCounts {
     pub tile_entry_depth: u64,
 }
 
-/// `since` (`self - earlier`) and `plus` (the sum), field by field, for a struct of
-/// counters named with its fields (a field left out of the list is a missing field, a
-/// compile error).
+/// `ZERO` (every counter 0, for the `const` thread-local), `since` (`self - earlier`)
+/// and `plus` (the sum), field by field, for a struct of counters named with its fields
+/// (a field left out of the list is a missing field, a compile error).
 macro_rules! field_wise {
     ($t:ident { $($f:ident),+ $(,)? }) => {
         impl $t {
+            /// Every counter at 0.
+            pub const ZERO: $t = $t { $($f: 0),+ };
+
             /// `self - earlier`, field by field.
             pub fn since(self, earlier: $t) -> $t {
                 $t { $($f: self.$f - earlier.$f),+ }
@@ -64,15 +67,7 @@ pub const ENABLED: bool = cfg!(feature = "stats");
 #[cfg(feature = "stats")]
 thread_local! {
     static COUNTS: std::cell::Cell<TraversalCounts> =
-        const { std::cell::Cell::new(TraversalCounts {
-            node_steps: 0,
-            leaf_visits: 0,
-            prim_tests: 0,
-            packet_splits: 0,
-            tiles: 0,
-            tile_fallbacks: 0,
-            tile_entry_depth: 0,
-        }) };
+        const { std::cell::Cell::new(TraversalCounts::ZERO) };
 }
 
 /// Applies `f` to this thread's counters (nothing without the `stats` feature).
