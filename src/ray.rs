@@ -59,7 +59,7 @@ impl Ray {
     /// largest component lies in [`DIR_MIN`, `DIR_MAX`] (a zero direction does not) and
     /// `t_min <= t_max`. Every intersector answers "no hit" for other rays (see
     /// [`crate::accel::Accel`]) without testing a primitive.
-    #[inline]
+    #[inline(always)]
     pub fn is_usable(&self) -> bool {
         let d_max = self.dir.abs().max_element();
         self.org.is_finite()

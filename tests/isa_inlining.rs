@@ -5,7 +5,9 @@
 //! (`Simd::enter`); everything below it must be inlined into it. A vector operation
 //! left out of line is compiled for the baseline and called once per operation: the
 //! answers stay right and the speed is gone, which no other test would see. So: no
-//! call may reach a `core::arch` intrinsic or a `wide` operation, the AVX2 entries use
+//! call may reach a `core::arch` intrinsic or a `wide` operation, no entry may call
+//! raypack's code, a closure or an iterator adapter out of line (scalar code such as the
+//! single-ray walk runs in the entries too), the AVX2 entries use
 //! `ymm` registers, the AVX-512 entries `zmm` registers and `k` masks, and in a build
 //! for the baseline the portable entries use neither.
 
@@ -59,6 +61,37 @@ fn kernels_are_compiled_for_their_instruction_set() {
         calls.is_empty(),
         "vector operations called out of line (not inlined into a kernel entry):\n{}",
         calls[..calls.len().min(20)].join("\n")
+    );
+
+    // Scalar code called out of line from an entry is compiled for the baseline too: a
+    // closure, an iterator adapter (`(0..3).any`) or a helper such as `Ray::is_usable`
+    // run per ray or per packet. The node-split choice of the build runs once per node.
+    let entries = ["avx2::entry", "avx512::entry", "portable::enter_base"];
+    let allowed = ["OnceLock<T>::initialize", "SmallNode::planar_left"];
+    let mut inside = false;
+    let mut scalar_calls = Vec::new();
+    for line in dis.lines() {
+        if line.ends_with(">:") {
+            inside = entries
+                .iter()
+                .any(|e| line.contains(&format!("<raypack::simd::{e}")));
+        } else if inside
+            && (line.contains("\tcall ") || line.contains("\tjmp "))
+            && line.contains(" <")
+            && !line.contains("+0x")
+            && !allowed.iter().any(|a| line.contains(a))
+            && (line.contains("<raypack::")
+                || line.contains("{{closure}}")
+                || line.contains("FnOnce")
+                || line.contains("core::iter::"))
+        {
+            scalar_calls.push(line);
+        }
+    }
+    assert!(
+        scalar_calls.is_empty(),
+        "kernel entries call code out of line (compiled for the baseline):\n{}",
+        scalar_calls[..scalar_calls.len().min(20)].join("\n")
     );
 
     let avx2 = bodies(&dis, "raypack::simd::avx2::entry");

@@ -12,7 +12,9 @@
 //! direction components, rays aimed exactly at vertices and edges, origins on the
 //! surface, mixed direction signs in one packet, and inactive NaN lanes.
 //!
-//! Every test runs at every width (4, 8 and 16 lanes) in the same binary.
+//! Every test runs at every width (4, 8 and 16 lanes) in the same binary, and under every
+//! instruction set the CPU runs; the oracle is the scalar walk compiled for the baseline,
+//! which the scalar walk of each set must match bit for bit as well.
 
 mod common;
 
@@ -36,7 +38,7 @@ use raypack::ray::{Hit, NO_HIT, Ray};
 use raypack::scene::camera::{block_pixel, block_shape};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::{Float, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16};
+use raypack::simd::{Float, Isa, LaneMask, Mask, Simd, Uint, Vf, Vu, W4, W8, W16};
 
 /// Draws the kernel tests need beyond [`Rng`]'s own.
 trait Draw {
@@ -420,9 +422,21 @@ fn show_hit(h: Option<Hit>) -> String {
 }
 
 /// One ray's closest hit (a miss as [`Hit::MISS`]) and any-hit answer against the
-/// scalar path's, bit for bit; `at` names the ray on failure.
+/// scalar path's, bit for bit; `at` names the ray on failure. The oracle is the scalar
+/// walk compiled for the baseline; the scalar walk of the set in use (it runs in that
+/// set's entry too) must give the same bits.
 fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: impl Fn() -> String) {
-    let want = tree.intersect(r);
+    let (want, want_occluded) = Isa::Sse
+        .scope(|| (tree.intersect(r), tree.occluded(r)))
+        .expect("the baseline always runs");
+    assert_eq!(
+        (hit_bits(tree.intersect(r)), tree.occluded(r)),
+        (hit_bits(want), want_occluded),
+        "{}: the scalar walk of {} against the baseline's\n  ray: {}",
+        at(),
+        Isa::in_use(),
+        show(r)
+    );
     let have = got.is_hit().then_some(got);
     assert_eq!(
         hit_bits(have),
@@ -435,7 +449,7 @@ fn assert_ray_matches(tree: &KdTree, r: &Ray, got: Hit, occluded: bool, at: impl
     );
     assert_eq!(
         occluded,
-        tree.occluded(r),
+        want_occluded,
         "{}: any-hit\n  ray: {}",
         at(),
         show(r)

@@ -54,10 +54,12 @@ impl<W: Simd> RayPacket<W> {
             |d| d.cmp_gt(Vf::<W>::ZERO).bits() & active,
         );
         let mut groups = [0; 8];
-        if (0..3).all(
+        // Written out: `(0..3).all` stays out of line, compiled for the baseline.
+        let one_sign = inl(
             #[inline(always)]
-            |a| neg[a] == 0 || pos[a] == 0,
-        ) {
+            |a: usize| neg[a] == 0 || pos[a] == 0,
+        );
+        if one_sign(0) && one_sign(1) && one_sign(2) {
             groups[0] = active;
             return (groups, 1);
         }

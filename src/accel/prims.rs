@@ -161,7 +161,7 @@ impl Prims {
     /// Folds the planes into `best` (closest-hit order of [`Hit::is_closer`]). A ray
     /// that is not [`Ray::is_usable`] hits no plane: `best.t.min(NaN)` would otherwise
     /// drop a NaN `t_max` and let the plane through (the packet twin's `min` keeps it).
-    #[inline]
+    #[inline(always)]
     pub fn intersect_planes(&self, ray: &Ray, best: &mut Hit) {
         if !ray.is_usable() {
             return;
@@ -184,7 +184,7 @@ impl Prims {
     /// True when any plane lies in `(t_min, t_max)`; never for a ray that is not
     /// [`Ray::is_usable`] (an infinite direction component gives `t = 0` on a plane
     /// along it).
-    #[inline]
+    #[inline(always)]
     pub fn planes_occlude(&self, ray: &Ray) -> bool {
         ray.is_usable()
             && self

@@ -184,6 +184,20 @@ impl std::str::FromStr for Isa {
     }
 }
 
+/// Runs `f`, a scalar kernel, inside the entry of the set in use, so that it is compiled
+/// for that set as the vector kernels are (VEX three-operand forms, BMI): the single-ray
+/// walk of a default build ran 4-10% behind a `target-cpu=native` build's (perf/isa.md).
+/// Scalar code gives the same bits under every set: Rust never fuses a multiply and add.
+#[inline(always)]
+pub(crate) fn scalar_entry<R>(f: impl FnOnce() -> R) -> R {
+    use super::{Avx2x4, Avx512x4, Simd, W4};
+    match Isa::in_use() {
+        Isa::Avx512 => Avx512x4::enter(f),
+        Isa::Avx2 => Avx2x4::enter(f),
+        Isa::Sse => W4::enter(f),
+    }
+}
+
 /// `$recv.$method::<B, ..>(args)` with `B` the backend of `$lanes` lanes (4, 8 or 16)
 /// for the instruction set in use, entered through [`super::Simd::enter`]: the one
 /// place a width becomes a backend. The method's other generic arguments follow `@`.

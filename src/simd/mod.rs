@@ -53,8 +53,8 @@ mod portable;
 pub(crate) use avx2::{Avx2x4, Avx2x8, Avx2x16};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::{Avx512x4, Avx512x8, Avx512x16};
-pub(crate) use isa::dispatch;
 pub use isa::{Isa, IsaError};
+pub(crate) use isa::{dispatch, scalar_entry};
 pub use portable::{W4, W8, W16};
 /// Other targets have the portable backends only ([`Isa::supported`] is false for the
 /// others there).

@@ -39,7 +39,7 @@ use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
-use crate::simd::{LaneBits, Simd, W4, W8, W16};
+use crate::simd::{LaneBits, Simd, W4, W8, W16, scalar_entry};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -468,15 +468,25 @@ impl Accel for KdTree {
     }
 
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit::MISS;
-        self.traverse::<false>(ray, &mut best);
-        self.prims.intersect_planes(ray, &mut best);
-        best.is_hit().then_some(best)
+        scalar_entry(
+            #[inline(always)]
+            || {
+                let mut best = Hit::MISS;
+                self.traverse::<false>(ray, &mut best);
+                self.prims.intersect_planes(ray, &mut best);
+                best.is_hit().then_some(best)
+            },
+        )
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        let mut unused = Hit::MISS;
-        self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
+        scalar_entry(
+            #[inline(always)]
+            || {
+                let mut unused = Hit::MISS;
+                self.prims.planes_occlude(ray) || self.traverse::<true>(ray, &mut unused)
+            },
+        )
     }
 
     fn intersect_packet4(&self, rays: &RayPacket<W4>) -> HitPacket<W4> {

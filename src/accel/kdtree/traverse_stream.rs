@@ -78,10 +78,15 @@ impl KdTree {
     /// [`KdTree::intersect_lanes_in`] at backend `W`, inside its entry.
     #[inline(always)]
     fn intersect_lanes_as<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit], groups: usize) {
-        self.walk_lanes::<W, false>(rays, groups, |i, _, mut best| {
-            self.prims.intersect_planes(&rays[i], &mut best);
-            hits[i] = if best.is_hit() { best } else { Hit::MISS };
-        });
+        self.walk_lanes::<W, false>(
+            rays,
+            groups,
+            #[inline(always)]
+            |i, _, mut best| {
+                self.prims.intersect_planes(&rays[i], &mut best);
+                hits[i] = if best.is_hit() { best } else { Hit::MISS };
+            },
+        );
     }
 
     /// [`KdTree::occluded_stream`] through the lane walks at width `W` whatever the
@@ -105,6 +110,11 @@ impl KdTree {
     /// [`KdTree::occluded_lanes_in`] at backend `W`, inside its entry.
     #[inline(always)]
     fn occluded_lanes_as<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool], groups: usize) {
-        self.walk_lanes::<W, true>(rays, groups, |i, answer, _| occluded[i] = answer);
+        self.walk_lanes::<W, true>(
+            rays,
+            groups,
+            #[inline(always)]
+            |i, answer, _| occluded[i] = answer,
+        );
     }
 }
