@@ -25,10 +25,11 @@ import tempfile
 
 
 def bench(binary, env, scene, args, out):
-    cmd = [binary, "bench", scene, "--modes", args.modes, "--sets", args.sets,
+    label, _, arg = scene.partition("=")
+    cmd = [binary, "bench", arg or label, "--modes", args.modes, "--sets", args.sets,
            "--threads", "1", "--repeat", str(args.repeat), "--json", out]
     if args.rays:
-        cmd += ["--rays", os.path.join(args.rays, scene)]
+        cmd += ["--rays", os.path.join(args.rays, label)]
     full_env = dict(os.environ)
     full_env.update(env)
     subprocess.run(cmd, check=True, env=full_env, stdout=subprocess.DEVNULL)
@@ -52,7 +53,9 @@ def main():
     ap.add_argument("b", help="binary B")
     ap.add_argument("--env-a", action="append", help="KEY=VALUE for A's runs")
     ap.add_argument("--env-b", action="append", help="KEY=VALUE for B's runs")
-    ap.add_argument("--scenes", default="bunny,conference,sponza")
+    ap.add_argument("--scenes", default="bunny,conference,sponza",
+                    help="raypack's scene arguments, comma-separated; NAME=ARG labels a "
+                         "scene given by path (its rays in --rays/NAME)")
     ap.add_argument("--sets", default="primary,shadow,diffuse")
     ap.add_argument("--modes", default="all")
     ap.add_argument("--rounds", type=int, default=3)
@@ -71,13 +74,14 @@ def main():
                 a = bench(args.a, env_a, scene, args, out)
                 b = bench(args.b, env_b, scene, args, out)
                 rounds.append((a, b))
+            label = scene.partition("=")[0]
             for key in rounds[0][0]:
                 a_rates = [r[0][key][0] for r in rounds]
                 b_rates = [r[1][key][0] for r in rounds]
                 ratio = statistics.median(rb / ra for ra, rb in zip(a_rates, b_rates))
                 same = all(r[0][key][1] == r[1][key][1] for r in rounds)
                 ratios.append(ratio)
-                print(f"{scene:<11} {key[0]:<8} {key[1]:<9} {statistics.median(a_rates):>10.3f} "
+                print(f"{label:<11} {key[0]:<8} {key[1]:<9} {statistics.median(a_rates):>10.3f} "
                       f"{statistics.median(b_rates):>10.3f} {ratio:>6.3f}  "
                       f"{'same' if same else 'DIFFER'}", flush=True)
     geo = statistics.geometric_mean(ratios)
