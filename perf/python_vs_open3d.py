@@ -373,11 +373,18 @@ def table(rows):
 
 
 def cpu_model():
+    """The model name with its family and model numbers (one vendor name covers several
+    generations)."""
+    found = {}
     for line in Path("/proc/cpuinfo").read_text().splitlines():
         key, _, value = line.partition(":")
-        if key.strip() == "model name":
-            return value.strip()
-    return "unknown"
+        key = key.strip()
+        if key in ("model name", "cpu family", "model") and key not in found:
+            found[key] = value.strip()
+    name = found.get("model name", "unknown")
+    if "cpu family" in found and "model" in found:
+        name += f" (family {found['cpu family']}, model {found['model']})"
+    return name
 
 
 def version(package):

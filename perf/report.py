@@ -226,17 +226,24 @@ def raypack_binary(arg):
 
 
 def cpu_description():
-    """CPU model, logical cores and the widest vector ISA of the flags in /proc/cpuinfo."""
-    model, flags = platform.processor() or platform.machine(), set()
+    """CPU model (with its family and model numbers, which tell one generation of a
+    vendor's name from the next), logical cores and the widest vector ISA of the flags
+    in /proc/cpuinfo."""
+    model, flags, numbers = platform.processor() or platform.machine(), set(), {}
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             key, _, value = line.partition(":")
-            if key.strip() == "model name":
+            key = key.strip()
+            if key == "model name":
                 model = value.strip()
-            elif key.strip() == "flags":
+            elif key in ("cpu family", "model") and key not in numbers:
+                numbers[key] = value.strip()
+            elif key == "flags":
                 flags = set(value.split())
     except OSError:
         pass
+    if len(numbers) == 2:
+        model += f" (family {numbers['cpu family']}, model {numbers['model']})"
     if "avx512f" in flags:
         isa = "AVX-512F"
     elif {"avx2", "fma"} <= flags:
