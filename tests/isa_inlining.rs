@@ -68,26 +68,20 @@ fn kernels_are_compiled_for_their_instruction_set() {
     // run per ray or per packet. The node-split choice of the build runs once per node.
     let entries = ["avx2::entry", "avx512::entry", "portable::enter_base"];
     let allowed = ["OnceLock<T>::initialize", "SmallNode::planar_left"];
-    let mut inside = false;
-    let mut scalar_calls = Vec::new();
-    for line in dis.lines() {
-        if line.ends_with(">:") {
-            inside = entries
-                .iter()
-                .any(|e| line.contains(&format!("<raypack::simd::{e}")));
-        } else if inside
-            && (line.contains("\tcall ") || line.contains("\tjmp "))
-            && line.contains(" <")
-            && !line.contains("+0x")
-            && !allowed.iter().any(|a| line.contains(a))
-            && (line.contains("<raypack::")
-                || line.contains("{{closure}}")
-                || line.contains("FnOnce")
-                || line.contains("core::iter::"))
-        {
-            scalar_calls.push(line);
-        }
-    }
+    let scalar_calls: Vec<&str> = entries
+        .iter()
+        .flat_map(|e| bodies(&dis, &format!("raypack::simd::{e}")))
+        .filter(|l| {
+            (l.contains("\tcall ") || l.contains("\tjmp "))
+                && l.contains(" <")
+                && !l.contains("+0x")
+                && !allowed.iter().any(|a| l.contains(a))
+                && (l.contains("<raypack::")
+                    || l.contains("{{closure}}")
+                    || l.contains("FnOnce")
+                    || l.contains("core::iter::"))
+        })
+        .collect();
     assert!(
         scalar_calls.is_empty(),
         "kernel entries call code out of line (compiled for the baseline):\n{}",
