@@ -229,7 +229,8 @@ fn rays_starting_on_edges_corners_and_split_planes_are_defined() {
 /// infinite or NaN, and every path must still find brute force's hit. A fused
 /// multiply-add in the node step got this wrong (an exact product plus an overflowed
 /// offset gave -inf where the plane lay ahead, and the walk skipped the hit's cell), so
-/// every path rounds the step twice (src/accel/kdtree/traverse.rs).
+/// the walks that fuse it (the lane walks) send such rays to the scalar walk
+/// (src/accel/kdtree/traverse.rs).
 #[test]
 fn overflowing_inverse_directions_agree_with_brute_force() {
     let g = transformed(&mixed_primitives(), 20.0, Vec3::new(8.0, -12.0, 15.0));

@@ -291,6 +291,10 @@ impl Float for F32x8 {
         rows4_x8(rows)
     }
     #[inline(always)]
+    fn mul_add_fast(self, a: Self, b: Self) -> Self {
+        avx!(F32x8(_mm256_fmadd_ps(self.0, a.0, b.0)))
+    }
+    #[inline(always)]
     fn splat(x: f32) -> Self {
         avx!(F32x8(_mm256_set1_ps(x)))
     }
@@ -578,6 +582,13 @@ impl Float for F32x16 {
             #[inline(always)]
             |j| F32x16([a[j], b[j]]),
         )
+    }
+    #[inline(always)]
+    fn mul_add_fast(self, a: Self, b: Self) -> Self {
+        F32x16([
+            self.0[0].mul_add_fast(a.0[0], b.0[0]),
+            self.0[1].mul_add_fast(a.0[1], b.0[1]),
+        ])
     }
     #[inline(always)]
     fn splat(x: f32) -> Self {

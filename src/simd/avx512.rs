@@ -408,6 +408,10 @@ impl Float for F32x16 {
         cmp::<_CMP_LT_OQ>(self.abs(), F32x16::splat(f32::INFINITY))
     }
     #[inline(always)]
+    fn mul_add_fast(self, a: Self, b: Self) -> Self {
+        avx!(F32x16(_mm512_fmadd_ps(self.0, a.0, b.0)))
+    }
+    #[inline(always)]
     fn abs(self) -> Self {
         avx!(F32x16(_mm512_abs_ps(self.0)))
     }

@@ -171,6 +171,13 @@ pub trait Float:
     fn from_rows4<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [Self; 4] {
         rows4_lanes(rows)
     }
+    /// `self * a + b` per lane, rounded once where the backend has FMA (the AVX2 and
+    /// AVX-512 ones) and twice elsewhere, so its bits depend on the instruction set:
+    /// only for values a margin covers either way (the node step's bands in `t`).
+    #[inline(always)]
+    fn mul_add_fast(self, a: Self, b: Self) -> Self {
+        self * a + b
+    }
     /// `self < o` per lane (false where either is NaN, as the scalar `<`).
     fn cmp_lt(self, o: Self) -> Self::Mask;
     /// `self > o` per lane (false where either is NaN).

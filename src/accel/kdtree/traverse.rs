@@ -22,9 +22,14 @@
 //! - A node step computes the band's two ends in `t` as `split * inv + off`, the
 //!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`RayAxes`): a
 //!   multiplication and an addition between the node's load and its decision. Its two
-//!   roundings stay within a quarter of the slack, and every traversal (scalar, packet,
-//!   tile, lanes) computes it the same way on every CPU: never fused, since FMA rounds
-//!   once where the CPU has it and would make the answers depend on the machine.
+//!   roundings stay within a quarter of the slack. The scalar, packet and tile walks
+//!   compute it so on every CPU, and visit exactly the scalar walk's nodes. The lane
+//!   walks (streams) fuse it where the instruction set has FMA
+//!   ([`crate::simd::Float::mul_add_fast`]): one rounding, also within the slack, so a
+//!   band may differ in its last bit and a lane visit a cell more or fewer at a band's
+//!   edge, but never miss one the exact band reaches, and the answer is the same. Rays
+//!   whose `org * inv` or `split * inv` could overflow take the scalar walk there: an
+//!   exact product plus an infinite offset is infinite on the wrong side of the plane.
 //! - A primitive found in a leaf may be hit outside the leaf's cell; the search stops only
 //!   when every node left on the stack starts beyond the best hit (for ordered intervals
 //!   this is Havran's "the hit lies before the current node's exit"), so a closer hit in

@@ -21,9 +21,13 @@
 //! `KdTree::step` for its ray operation by operation (the band's ends at the split,
 //! the near/far tests, the empty-child skips, the intervals and the pushes on the
 //! lane's own stack), so it visits the scalar ray's leaves with its intervals in its
-//! order; leaves, pops and the best-hit test run the scalar code itself. A ray with a
-//! zero direction component takes the scalar walk whole (the parallel case is rare and
-//! needs its own rule).
+//! order; leaves, pops and the best-hit test run the scalar code itself. One exception:
+//! where the instruction set has FMA the band's ends round once, not twice
+//! ([`Float::mul_add_fast`]; 1.03x on the streams, perf/log/stream.md). Both stay within
+//! the plane slack, so a lane may visit a cell more or fewer at a band's edge but
+//! finds the same hit (`super::traverse`'s notes). A ray with a zero direction
+//! component, or one so small that the step could overflow, takes the scalar walk
+//! whole.
 
 use super::KdTree;
 use super::node::{LEFT_EMPTY, NodeLanes, RIGHT_EMPTY, as_words};
@@ -117,8 +121,9 @@ enum Begin {
     Walk,
     /// Not at all: the ray misses the tree's box or is not usable.
     Miss,
-    /// Through the scalar set-up: a direction component is zero (the scalar walk
-    /// takes the ray whole) or so small that its inverse is infinite.
+    /// Through the scalar walk, whole: a direction component is zero, or so small that
+    /// `org * inv` or `split * inv` may overflow, which the fused node step
+    /// ([`Float::mul_add_fast`]) would turn into a band on the wrong side.
     Scalar,
 }
 
@@ -193,7 +198,10 @@ impl<W: Simd> PlaneTests<W> {
         [left_empty, right_empty]: [Mask<W>; 2],
     ) -> PlaneTests<W> {
         let negative = inv.cmp_lt(Vf::<W>::ZERO);
-        let (lo, hi) = (split * inv + lo_off, split * inv + hi_off);
+        let (lo, hi) = (
+            split.mul_add_fast(inv, lo_off),
+            split.mul_add_fast(inv, hi_off),
+        );
         let near_only = lo.cmp_gt(t_far);
         let far_only = !near_only & hi.cmp_lt(t_near);
         PlaneTests {
@@ -398,23 +406,10 @@ impl KdTree {
                     g.begin(i, r, s.node, (s.t_near[k], s.t_far[k]), axes);
                     return;
                 }
-                Begin::Scalar if ray.dir.cmpeq(glam::Vec3::ZERO).any() => {
+                Begin::Scalar => {
                     let mut hit = Hit::MISS;
                     let answer = self.traverse::<ANY_HIT>(ray, &mut hit);
                     done(r, answer, hit);
-                }
-                Begin::Scalar => {
-                    let walk = &mut g.walks[i];
-                    if self.start_walk(ray, walk) {
-                        let (x, interval) = (&walk.axes, (walk.t_near, walk.t_far));
-                        let axes = [&x.inv, &x.lo_off, &x.hi_off].amap(
-                            #[inline(always)]
-                            |v| [v[0], v[1], v[2]],
-                        );
-                        g.begin(i, r, 0, interval, axes);
-                        return;
-                    }
-                    done(r, false, Hit::MISS);
                 }
             }
         }
@@ -449,8 +444,12 @@ impl KdTree {
         let mut hi_off = [splat(0.0); 3];
         for a in 0..3 {
             let inv = p.inv_dir[a];
-            scalar |= !inv.finite();
-            let margin = (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK);
+            let reach = splat(coord_max[a]) + o_max;
+            // Rays whose `org * inv` or `split * inv` could overflow take the scalar
+            // walk: fused, `split * inv + (-inf)` would be `-inf` where the plane lies
+            // ahead (rounded twice, it is NaN and visits both children).
+            scalar |= !(reach * inv.abs() * splat(2.0)).finite();
+            let margin = reach * splat(PLANE_SLACK);
             let slack = margin * inv.abs();
             let base = -(p.org[a] * inv);
             lo_off[a] = base - slack;
@@ -744,8 +743,8 @@ mod tests {
     }
 
     /// [`KdTree::start_block`] sets up every ray as [`KdTree::start_walk`] does, bit for
-    /// bit, and sends to the scalar set-up exactly the rays with a zero or subnormal
-    /// direction component; a walking ray starts at the block's shared node with the
+    /// bit, and sends to the scalar walk exactly the rays with a direction component
+    /// whose inverse may overflow the node step; a walking ray starts at the block's shared node with the
     /// interval and stack its scalar walk has after as many steps.
     #[inline(always)]
     fn blocks_match_scalar<W: Simd>() {
@@ -761,7 +760,10 @@ mod tests {
             for (k, ray) in rays[s.base..s.end].iter().enumerate() {
                 let mut w = Walk::new();
                 let reaches = tree.start_walk(ray, &mut w);
-                let odd = ray.is_usable() && !(Vec3::ONE / ray.dir).is_finite();
+                let reach =
+                    tree.coord_max() + Vec3::splat(crate::accel::triaccel::max_abs(ray.org));
+                let odd =
+                    ray.is_usable() && !(reach * (Vec3::ONE / ray.dir).abs() * 2.0).is_finite();
                 let what = format!("{} lanes, ray {} {ray:?}", W::LANES, s.base + k);
                 match s.begin[k] {
                     Begin::Scalar => {
