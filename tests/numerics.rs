@@ -11,10 +11,10 @@ use common::hit_bits;
 use common::{adversarial_rays, mixed_primitives, random_rays};
 use glam::Vec3;
 use rayon::prelude::*;
-use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::KdTree;
 use raypack::accel::packet::RayPacket;
+use raypack::accel::{Accel, TILE_RAYS};
 use raypack::ray::Ray;
 use raypack::scene::Geometry;
 use raypack::scene::generate::{self, Rng};
@@ -229,7 +229,7 @@ fn rays_starting_on_edges_corners_and_split_planes_are_defined() {
 /// infinite or NaN, and every path must still find brute force's hit. A fused
 /// multiply-add in the node step got this wrong (an exact product plus an overflowed
 /// offset gave -inf where the plane lay ahead, and the walk skipped the hit's cell), so
-/// the walks that fuse it (the lane walks) send such rays to the scalar walk
+/// the walks that fuse it (packet, tile and lane walks) send such rays to the scalar walk
 /// (src/accel/kdtree/traverse.rs).
 #[test]
 fn overflowing_inverse_directions_agree_with_brute_force() {
@@ -263,6 +263,47 @@ fn overflowing_inverse_directions_agree_with_brute_force() {
                 raypack::simd::Isa::in_use(),
                 rays[i]
             );
+        }
+    });
+    // Tiles of 64 coherent rays (one origin, directions a little apart, the tiny
+    // component on the same axis with the same sign in every lane), so the tile and
+    // packet walks take them rather than splitting them into small groups.
+    let mut tiles = Vec::new();
+    for t in 0..64 {
+        let org = rng.point(bounds.min, bounds.max);
+        let centre = (rng.point(bounds.min, bounds.max) - org).normalize();
+        let tiny = tiny[t % tiny.len()];
+        for _ in 0..TILE_RAYS {
+            let mut d = centre + rng.unit_vector() * 0.05;
+            d[t % 3] = tiny;
+            tiles.push(Ray::new(org, d.normalize(), 0.0, f32::INFINITY));
+        }
+    }
+    let want: Vec<_> = tiles.iter().map(|r| hit_bits(brute.intersect(r))).collect();
+    let hits = want.iter().filter(|h| h.is_some()).count();
+    assert!(hits > tiles.len() / 4, "only {hits} tile hits");
+    common::each_isa(|| {
+        for (tile, want) in tiles.chunks(TILE_RAYS).zip(want.chunks(TILE_RAYS)) {
+            let mut got = [raypack::ray::Hit::MISS; TILE_RAYS];
+            tree.intersect_tile::<W16>(tile, &mut got);
+            let mut also = [raypack::ray::Hit::MISS; TILE_RAYS];
+            tree.intersect_tile::<W8>(tile, &mut also);
+            for (i, w) in want.iter().enumerate() {
+                let isa = raypack::simd::Isa::in_use();
+                let (a, b) = (&got[i], &also[i]);
+                assert_eq!(
+                    hit_bits(a.is_hit().then_some(*a)),
+                    *w,
+                    "tile16 ({isa}): {:?}",
+                    tile[i]
+                );
+                assert_eq!(
+                    hit_bits(b.is_hit().then_some(*b)),
+                    *w,
+                    "tile8 ({isa}): {:?}",
+                    tile[i]
+                );
+            }
         }
     });
 }

@@ -22,11 +22,10 @@
 //! - A node step computes the band's two ends in `t` as `split * inv + off`, the
 //!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`RayAxes`): a
 //!   multiplication and an addition between the node's load and its decision. Its two
-//!   roundings stay within a quarter of the slack. The scalar, packet and tile walks
-//!   compute it so on every CPU, and visit exactly the scalar walk's nodes. The lane
-//!   walks (streams) fuse it where the instruction set has FMA
-//!   ([`crate::simd::Float::mul_add_fast`]): one rounding, also within the slack, so a
-//!   band may differ in its last bit and a lane visit a cell more or fewer at a band's
+//!   roundings stay within a quarter of the slack. The scalar walk computes it so on
+//!   every CPU; the packet, tile and lane walks fuse it where the instruction set has
+//!   FMA ([`crate::simd::Float::mul_add_fast`]): one rounding, also within the slack, so
+//!   a band may differ in its last bit and a lane visit a cell more or fewer at a band's
 //!   edge, but never miss one the exact band reaches, and the answer is the same. Rays
 //!   whose `org * inv` or `split * inv` could overflow take the scalar walk there: an
 //!   exact product plus an infinite offset is infinite on the wrong side of the plane.

@@ -12,7 +12,12 @@
 //! - Every per-lane quantity (the clipped interval, the band around the split distance,
 //!   the near/far decisions, the intervals pushed) is computed with the scalar path's
 //!   operations in its order, so a lane is active at exactly the nodes the scalar ray
-//!   visits, with the same interval, in the same front-to-back order.
+//!   visits, with the same interval, in the same front-to-back order. One exception:
+//!   where the instruction set has FMA the band's ends round once
+//!   ([`Float::mul_add_fast`]), within the plane slack as the scalar path's two
+//!   roundings are, so a lane may visit a cell more or fewer at a band's edge but finds
+//!   the same hit (`super::traverse`'s notes); lanes whose step could overflow
+//!   ([`overflow_lanes`]) take the scalar walk.
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and
@@ -33,8 +38,8 @@ use crate::accel::packet::{HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::Hit;
 use crate::simd::{
-    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, max_abs,
-    prefetch,
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl,
+    max_abs, prefetch,
 };
 
 /// One pending far child: its node, the lanes that need it, and their interval.
@@ -91,6 +96,30 @@ pub(super) fn clip_to_box_packet<W: Simd>(
         t1 = select(parallel, t1, t1.min(t_hi + slack));
     }
     (live & t0.cmp_le(t1), t0, t1)
+}
+
+/// Lanes with a non-zero direction component so small that the node step's
+/// `org * inv` or `split * inv` may overflow (`(coord_max + |org|max) * |inv| * 2` not
+/// finite). The fused step ([`Float::mul_add_fast`]) would put their band on the wrong
+/// side of a plane (an exact product plus an infinite offset), so they take the scalar
+/// walk; zero components have their own rule in the walks.
+#[inline(always)]
+pub(super) fn overflow_lanes<W: Simd>(b: &Aabb, rays: &RayPacket<W>) -> Mask<W> {
+    let coord_max = box_coord_max(b);
+    if !coord_max.is_finite() {
+        // No box (a tree of planes alone): every band is infinite or NaN, fused or not,
+        // and a walk visits both children everywhere.
+        return Mask::<W>::NONE;
+    }
+    let reach = Vf::<W>::splat(coord_max) + max_abs(&rays.org);
+    let over = inl(
+        #[inline(always)]
+        |a: usize| {
+            !rays.dir[a].cmp_eq(Vf::<W>::ZERO)
+                & !(reach * rays.inv_dir[a].abs() * Vf::<W>::splat(2.0)).finite()
+        },
+    );
+    over(0) | over(1) | over(2)
 }
 
 /// Lane groups of `active` that agree on every direction sign, counting the packets
@@ -152,22 +181,13 @@ impl KdTree {
         // Every lane is clipped to the tree's box once; only those that reach it are
         // grouped and walked.
         let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, rays.active);
-        let (groups, count) = coherent_groups(rays, reach.bits());
+        let risky = reach & overflow_lanes(&self.bounds, rays);
+        let (groups, count) = coherent_groups(rays, (reach & !risky).bits());
         let mut alone = [None; MAX_LANES];
-        let mut any_alone = false;
+        let mut alone_bits = risky.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
-                any_alone = true;
-                let mut left = group;
-                while left != 0 {
-                    let i = left.trailing_zeros() as usize;
-                    left &= left - 1;
-                    if let Some(ray) = rays.lane(i) {
-                        let mut hit = Hit::MISS;
-                        self.traverse::<false>(&ray, &mut hit);
-                        alone[i] = Some(hit);
-                    }
-                }
+                alone_bits |= group;
             } else {
                 let lanes = Mask::<W>::from_bits(group);
                 self.traverse_packet_from::<W, false>(
@@ -176,6 +196,16 @@ impl KdTree {
                     (0, lanes, t_near, t_far),
                     &mut best,
                 );
+            }
+        }
+        let any_alone = alone_bits != 0;
+        while alone_bits != 0 {
+            let i = alone_bits.trailing_zeros() as usize;
+            alone_bits &= alone_bits - 1;
+            if let Some(ray) = rays.lane(i) {
+                let mut hit = Hit::MISS;
+                self.traverse::<false>(&ray, &mut hit);
+                alone[i] = Some(hit);
             }
         }
         if any_alone {
@@ -215,22 +245,13 @@ impl KdTree {
         let mut best = HitPacket::miss();
         let (reach, t_near, t_far) =
             clip_to_box_packet(&self.bounds, rays, rays.active & !by_plane);
-        let (groups, count) = coherent_groups(rays, reach.bits());
+        let risky = reach & overflow_lanes(&self.bounds, rays);
+        let (groups, count) = coherent_groups(rays, (reach & !risky).bits());
         let mut occluded = by_plane.bits();
+        let mut alone_bits = risky.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
-                let mut left = group;
-                while left != 0 {
-                    let i = left.trailing_zeros() as usize;
-                    left &= left - 1;
-                    let mut unused = Hit::MISS;
-                    if rays.lane(i).is_some_and(
-                        #[inline(always)]
-                        |ray| self.traverse::<true>(&ray, &mut unused),
-                    ) {
-                        occluded |= 1 << i;
-                    }
-                }
+                alone_bits |= group;
             } else {
                 let lanes = Mask::<W>::from_bits(group);
                 occluded |= self
@@ -241,6 +262,17 @@ impl KdTree {
                         &mut best,
                     )
                     .bits();
+            }
+        }
+        while alone_bits != 0 {
+            let i = alone_bits.trailing_zeros() as usize;
+            alone_bits &= alone_bits - 1;
+            let mut unused = Hit::MISS;
+            if rays.lane(i).is_some_and(
+                #[inline(always)]
+                |ray| self.traverse::<true>(&ray, &mut unused),
+            ) {
+                occluded |= 1 << i;
             }
         }
         occluded
@@ -351,8 +383,8 @@ impl KdTree {
                 let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
                 let margin = margins[axis];
-                let lo = split * inv + lo_off[axis];
-                let hi = split * inv + hi_off[axis];
+                let lo = split.mul_add_fast(inv, lo_off[axis]);
+                let hi = split.mul_add_fast(inv, hi_off[axis]);
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
                 let (near_only, far_only) = if any_zero[axis] {

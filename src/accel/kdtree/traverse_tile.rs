@@ -28,7 +28,8 @@
 //! interval and in the same front-to-back order (all the tile's lanes agree on the
 //! near child), and a group with no lane on a side rides along masked off.
 //! Tiles whose lanes disagree on a direction sign, have a zero or non-invertible
-//! direction component, or fit in one group skip the descent and trace each group as an
+//! direction component (or one so small that the node step may overflow,
+//! [`super::traverse_packet::overflow_lanes`]), or fit in one group skip the descent and trace each group as an
 //! ordinary packet; [`super::stats`] counts how often.
 
 use super::KdTree;
@@ -346,11 +347,11 @@ impl KdTree {
                 let (inv, lo_off, hi_off) = (&inv[axis], &lo_offs[axis], &hi_offs[axis]);
                 let lo: [Vf<W>; G] = array_fn(
                     #[inline(always)]
-                    |g| split * inv[g] + lo_off[g],
+                    |g| split.mul_add_fast(inv[g], lo_off[g]),
                 );
                 let hi: [Vf<W>; G] = array_fn(
                     #[inline(always)]
-                    |g| split * inv[g] + hi_off[g],
+                    |g| split.mul_add_fast(inv[g], hi_off[g]),
                 );
                 let near_only: [Mask<W>; G] = array_fn(
                     #[inline(always)]
@@ -528,7 +529,8 @@ impl KdTree {
     }
 
     /// The groups' clipped lanes and intervals and the tile's bound; `None` when the
-    /// lanes disagree on a direction sign or have a zero or non-invertible component.
+    /// lanes disagree on a direction sign or have a zero, non-invertible or
+    /// overflowing component.
     #[allow(clippy::type_complexity)]
     #[inline(always)]
     fn tile_bound<W: Simd>(
@@ -571,11 +573,13 @@ impl KdTree {
                 neg[a] |= (lanes & d.cmp_lt(Vf::<W>::ZERO)).any();
                 pos[a] |= (lanes & d.cmp_gt(Vf::<W>::ZERO)).any();
                 let inv = p.inv_dir[a];
-                // A zero (or subnormal) component has no finite reciprocal.
-                if (lanes & !inv.finite()).any() {
+                // A zero (or subnormal) component has no finite reciprocal, and a tiny
+                // one a step that may overflow (`overflow_lanes`).
+                let reach = splat(coord_max[a]) + o_max;
+                if (lanes & !(reach * inv.abs() * splat(2.0)).finite()).any() {
                     return None;
                 }
-                let slack = (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK) * inv.abs();
+                let slack = reach * splat(PLANE_SLACK) * inv.abs();
                 o_lo[a] = o_lo[a].min_lt(select(lanes, p.org[a], inf));
                 o_hi[a] = o_hi[a].max_gt(select(lanes, p.org[a], ninf));
                 inv_lo[a] = inv_lo[a].min_lt(select(lanes, inv, inf));
