@@ -238,4 +238,23 @@ mod tests {
     fn sixteen_lanes_match_scalar() {
         lanes_match_scalar::<W16>();
     }
+
+    /// The 4- and 8-lane backends of every instruction set this CPU runs, inside their
+    /// entries: the lane walks test leaves with them ([`crate::simd::Simd::X8`]).
+    #[test]
+    fn every_instruction_set_matches_scalar() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use crate::simd::{Avx2x4, Avx2x8, Avx512x4, Avx512x8, Isa};
+            if Isa::Avx2.supported() {
+                Avx2x4::enter(lanes_match_scalar::<Avx2x4>);
+                Avx2x8::enter(lanes_match_scalar::<Avx2x8>);
+            }
+            if Isa::Avx512.supported() {
+                Avx512x4::enter(lanes_match_scalar::<Avx512x4>);
+                Avx512x8::enter(lanes_match_scalar::<Avx512x8>);
+            }
+            eprintln!("leaf lanes checked under {:?}", Isa::best());
+        }
+    }
 }

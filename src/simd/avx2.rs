@@ -255,8 +255,10 @@ fn rows4_x8<'r>(rows: impl Fn(usize) -> &'r [f32; 4]) -> [F32x8; 4] {
             #[inline(always)]
             |i: usize| _mm_loadu_ps(rows(i).as_ptr()),
         );
-        let row =
-            |i: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(half(i)), half(i + 4));
+        let row = inl(
+            #[inline(always)]
+            |i: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(half(i)), half(i + 4)),
+        );
         let (a, b, c, d) = (row(0), row(1), row(2), row(3));
         // Words 0, 1 (lo) and 2, 3 (hi) of rows a and b, interleaved; likewise c, d.
         let (ab_lo, ab_hi) = (_mm256_unpacklo_ps(a, b), _mm256_unpackhi_ps(a, b));
@@ -695,6 +697,7 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
+    [Avx2x4, Avx2x8],
     "4 lanes under AVX2: `wide`'s f32x4, VEX-encoded inside the AVX2 entry."
 );
 backend!(
@@ -705,6 +708,7 @@ backend!(
     U32x8,
     VBool<__m256>,
     8,
+    [Avx2x4, Avx2x8],
     "8 lanes in one AVX2 register."
 );
 backend!(
@@ -715,5 +719,6 @@ backend!(
     U32x16,
     Mask16,
     16,
+    [Avx2x4, Avx2x8],
     "16 lanes in two AVX2 registers."
 );

@@ -536,6 +536,7 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
+    [Avx512x4, Avx512x8],
     "4 lanes under AVX-512: `wide`'s f32x4 inside the AVX-512 entry."
 );
 backend!(
@@ -546,6 +547,7 @@ backend!(
     U32x8,
     <F32x8 as Float>::Mask,
     8,
+    [Avx512x4, Avx512x8],
     "8 lanes under AVX-512: the AVX2 register type inside the AVX-512 entry."
 );
 backend!(
@@ -556,5 +558,6 @@ backend!(
     U32x16,
     VBool<u16>,
     16,
+    [Avx512x4, Avx512x8],
     "16 lanes in one AVX-512 register, masks in `k` registers."
 );

@@ -23,7 +23,7 @@
 /// A backend marker: its lane count, instruction set, entry (a function compiled for
 /// that set) and vector types.
 macro_rules! backend {
-    ($vis:vis $w:ident, $isa:expr, $enter:path, $f:ty, $u:ty, $mask:ty, $n:literal, $doc:literal) => {
+    ($vis:vis $w:ident, $isa:expr, $enter:path, $f:ty, $u:ty, $mask:ty, $n:literal, [$x4:ty, $x8:ty], $doc:literal) => {
         #[doc = $doc]
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
         $vis struct $w;
@@ -34,6 +34,8 @@ macro_rules! backend {
             type F = $f;
             type U = $u;
             type Mask = $mask;
+            type X4 = $x4;
+            type X8 = $x8;
             #[inline(always)]
             fn enter<R>(f: impl FnOnce() -> R) -> R {
                 $enter(f)
@@ -93,6 +95,13 @@ pub trait Simd: Copy + Clone + Debug + Default + Send + Sync + 'static {
     type U: Uint<Mask = Self::Mask>;
     /// One bool per lane.
     type Mask: LaneMask;
+    /// The 4- and 8-lane backends of the same instruction set, for a kernel of this
+    /// width that works at another inside its entry (the lane walks test a leaf's
+    /// triangles in 4 or 8 lanes): the portable `W8` is two SSE registers and
+    /// transposes lane by lane, the AVX ones are one register.
+    type X4: Simd;
+    /// See [`Simd::X4`].
+    type X8: Simd;
 
     /// All lanes set.
     #[inline(always)]

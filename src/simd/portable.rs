@@ -251,6 +251,7 @@ backend!(
     wide::u32x4,
     VBool<wide::f32x4>,
     4,
+    [W4, W8],
     "4 lanes, portable (`wide`'s f32x4; SSE): the Wald packet."
 );
 backend!(
@@ -261,6 +262,7 @@ backend!(
     wide::u32x8,
     VBool<wide::f32x8>,
     8,
+    [W4, W8],
     "8 lanes, portable (`wide`'s f32x8: two SSE registers in a baseline build)."
 );
 backend!(
@@ -271,5 +273,6 @@ backend!(
     wide::u32x16,
     VBool<wide::f32x16>,
     16,
+    [W4, W8],
     "16 lanes, portable (`wide`'s f32x16: four SSE registers in a baseline build)."
 );

@@ -59,13 +59,14 @@ pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 pub const LEAF_LANES_MIN: u32 = 2;
 
 /// The width of those groups: 8 lanes (16 measured slower, perf/log/stream.md: a diffuse
-/// ray's leaves hold few triangles).
-type LeafLanes = W8;
+/// ray's leaves hold few triangles), in the walk's instruction set ([`Simd::X8`]: the
+/// portable 8 lanes are two SSE registers filled lane by lane).
+type LeafLanes<W> = <W as Simd>::X8;
 
 /// Leaves of at most 4 triangles (most of those a diffuse ray meets) are tested in 4
 /// lanes: loading half as many lanes' records paid 1.05x on Sponza's and the conference
 /// room's diffuse streams (perf/log/stream.md).
-type SmallLeafLanes = W4;
+type SmallLeafLanes<W> = <W as Simd>::X4;
 
 impl KdTree {
     /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
@@ -209,7 +210,7 @@ impl KdTree {
         }
         // A leaf's primitives, then the pops that find the next node.
         if n.is_leaf()
-            && let Some(answer) = self.leaf_step::<ANY_HIT, false>(&n, ray, best)
+            && let Some(answer) = self.leaf_step::<ANY_HIT, W4, false>(&n, ray, best)
         {
             return Some(answer);
         }
@@ -222,9 +223,10 @@ impl KdTree {
 
     /// The primitives of the leaf `n` against `ray`: closest hit folded into `best`, or
     /// with `ANY_HIT`, `Some(true)` at the first hit. `LEAF_LANES` tests the triangles
-    /// in lanes, as the lane walks (traverse_lanes.rs) do; the scalar step one by one.
+    /// in lanes, as the lane walks (traverse_lanes.rs) do, at the 4- and 8-lane backends
+    /// of the walk's `W`; the scalar step one by one.
     #[inline(always)]
-    pub(super) fn leaf_step<const ANY_HIT: bool, const LEAF_LANES: bool>(
+    pub(super) fn leaf_step<const ANY_HIT: bool, W: Simd, const LEAF_LANES: bool>(
         &self,
         n: &super::node::KdNode,
         ray: &Ray,
@@ -253,16 +255,16 @@ impl KdTree {
                 let all_tris =
                     |g: &[u32]| tris_only || g.iter().all(|&p| p < self.prims.sphere_base);
                 if LEAF_LANES
-                    && (LEAF_LANES_MIN..=SmallLeafLanes::LANES as u32).contains(&count)
+                    && (LEAF_LANES_MIN..=SmallLeafLanes::<W>::LANES as u32).contains(&count)
                     && all_tris(prims)
                 {
                     self.prims
-                        .intersect_tris_lanes::<SmallLeafLanes>(prims, ray, best);
+                        .intersect_tris_lanes::<SmallLeafLanes<W>>(prims, ray, best);
                 } else if LEAF_LANES && count >= LEAF_LANES_MIN {
-                    for group in prims.chunks(LeafLanes::LANES) {
+                    for group in prims.chunks(LeafLanes::<W>::LANES) {
                         if group.len() as u32 >= LEAF_LANES_MIN && all_tris(group) {
                             self.prims
-                                .intersect_tris_lanes::<LeafLanes>(group, ray, best);
+                                .intersect_tris_lanes::<LeafLanes<W>>(group, ray, best);
                         } else {
                             self.prims.intersect_leaf(group, ray, best);
                         }

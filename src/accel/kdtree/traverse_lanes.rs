@@ -642,7 +642,7 @@ impl KdTree {
         for i in lanes_of((live_m & n.leaf).bits()) {
             let here = self.nodes[g.st.node[i] as usize];
             let ray = &rays[g.ray_of[i]];
-            if let Some(answer) = self.leaf_step::<ANY_HIT, true>(&here, ray, &mut g.best[i]) {
+            if let Some(answer) = self.leaf_step::<ANY_HIT, W, true>(&here, ray, &mut g.best[i]) {
                 done(g.ray_of[i], answer, g.best[i]);
                 self.start_lane::<W, ANY_HIT>(g, i, rays, next, done);
             } else {

@@ -17,7 +17,7 @@
 //!   ([`Float::mul_add_fast`]), within the plane slack as the scalar path's two
 //!   roundings are, so a lane may visit a cell more or fewer at a band's edge but finds
 //!   the same hit (`super::traverse`'s notes); lanes whose step could overflow
-//!   ([`overflow_lanes`]) take the scalar walk.
+//!   (`overflow_lanes`) take the scalar walk.
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
 //!   agree on the sign of each direction component (a zero component has no near side
 //!   and agrees with both). Packets that disagree are split into groups that agree and

@@ -29,8 +29,8 @@
 //! near child), and a group with no lane on a side rides along masked off.
 //! Tiles whose lanes disagree on a direction sign, have a zero or non-invertible
 //! direction component (or one so small that the node step may overflow,
-//! [`super::traverse_packet::overflow_lanes`]), or fit in one group skip the descent and trace each group as an
-//! ordinary packet; [`super::stats`] counts how often.
+//! `traverse_packet::overflow_lanes`), or fit in one group skip the descent and trace
+//! each group as an ordinary packet; [`super::stats`] counts how often.
 
 use super::KdTree;
 use super::stats::bump;
