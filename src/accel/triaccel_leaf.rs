@@ -1,6 +1,7 @@
 //! One ray against several TriAccel records at once: lanes are triangles (the leaf
 //! kernel of the kd-tree's lane walks): [`Prims::intersect_tris_lanes`], the lane twin
-//! of [`Prims::intersect_leaf`] (in [`crate::accel::prims`]) for a leaf's triangles.
+//! of [`Prims::intersect_leaf`] (in [`crate::accel::prims`]) for a leaf's triangles,
+//! and [`Prims::occludes_tris_lanes`], the twin of the scalar any-hit loop.
 //! Each lane repeats [`super::triaccel::TriAccel::intersect`] operation by operation
 //! with the ray's components picked by the lane's axis `k`, so its `t`, `u`, `v` and
 //! edge bound are the scalar ones bit for bit; the lanes are then
@@ -22,6 +23,27 @@ impl Prims {
     /// `limit = min(next_up(best.t), ray.t_max)` replaces `best` when [`Hit::is_closer`].
     #[inline(always)]
     pub fn intersect_tris_lanes<W: Simd>(&self, tris: &[u32], ray: &Ray, best: &mut Hit) {
+        self.tris_lanes::<W, false>(tris, ray, best);
+    }
+
+    /// Whether any triangle in slots `tris` (below `sphere_base`, at most `W::LANES`) is
+    /// hit in `(t_min, t_max)`: the answer of [`Prims::intersect_prim`] with `t_max`
+    /// over the slots, as the scalar any-hit loop asks it.
+    #[inline(always)]
+    pub fn occludes_tris_lanes<W: Simd>(&self, tris: &[u32], ray: &Ray) -> bool {
+        let mut unused = Hit::MISS;
+        self.tris_lanes::<W, true>(tris, ray, &mut unused)
+    }
+
+    /// [`Prims::intersect_tris_lanes`], or with `ANY_HIT` [`Prims::occludes_tris_lanes`]
+    /// (the limit stays `t_max` and the first hit answers; `best` is left alone).
+    #[inline(always)]
+    pub(crate) fn tris_lanes<W: Simd, const ANY_HIT: bool>(
+        &self,
+        tris: &[u32],
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
         debug_assert!(tris.len() <= W::LANES);
         let n = tris.len();
         let rec = inl(
@@ -66,7 +88,17 @@ impl Prims {
             d_max: splat(max_abs(d)),
         };
         let (t, ad, reach, slack) = lanes.distance([n_u, n_v, n_d], mag);
-        let limit0 = best.t.next_up().min(ray.t_max);
+        let limit_of = inl(
+            #[inline(always)]
+            |best: &Hit| {
+                if ANY_HIT {
+                    ray.t_max
+                } else {
+                    best.t.next_up().min(ray.t_max)
+                }
+            },
+        );
+        let limit0 = limit_of(best);
         // The loosest limit of this leaf (limits only narrow): a lane failing here fails
         // under every later limit too.
         let keep =
@@ -81,7 +113,7 @@ impl Prims {
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let limit = best.t.next_up().min(ray.t_max);
+            let limit = limit_of(best);
             let (ti, adi, si) = (t.lane(i), ad.lane(i), slack.lane(i));
             if !((ti - limit) * adi < si) {
                 continue;
@@ -96,6 +128,9 @@ impl Prims {
             } else {
                 exact_rule(ray, limit, &self.corners[slot])
             };
+            if ANY_HIT && hit.is_some() {
+                return true;
+            }
             let prim = self.tris[slot].id();
             if let Some((t, u, v)) = hit
                 && Hit::is_closer(t, prim, best)
@@ -103,6 +138,7 @@ impl Prims {
                 *best = Hit { t, u, v, prim };
             }
         }
+        false
     }
 }
 
@@ -217,6 +253,15 @@ mod tests {
                             W::LANES
                         );
                     }
+                    let occluded = group
+                        .iter()
+                        .any(|&t| p.intersect_prim(t, &ray, ray.t_max).is_some());
+                    assert_eq!(
+                        occluded,
+                        p.occludes_tris_lanes::<W>(&group, &ray),
+                        "{} lanes, group {group:?} (round {round}), ray {ray:?}: any hit",
+                        W::LANES
+                    );
                     hits += want.is_hit() as usize;
                 }
             }

@@ -43,7 +43,7 @@ use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
-use crate::simd::{LaneBits, Simd, W4, W8, W16, scalar_entry};
+use crate::simd::{LaneBits, Simd, W4, W8, W16, inl, scalar_entry};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -235,44 +235,68 @@ impl KdTree {
         let prims = self.leaf_prims(n);
         let count = prims.len() as u32;
         bump(|c| c.leaf_visits += 1);
-        if count != 0 {
-            if ANY_HIT {
-                // A loop, not `Iterator::any`, which LLVM may keep out of line (see
-                // `crate::simd::inl`).
-                for &p in prims {
-                    bump(|c| c.prim_tests += 1);
-                    if self.prims.intersect_prim(p, ray, ray.t_max).is_some() {
-                        return Some(true);
-                    }
-                }
-            } else {
-                bump(|c| c.prim_tests += count as u64);
-                // The lane walks test a leaf's triangles in lanes (perf/log/stream.md);
-                // the scalar path keeps one test per primitive. In a scene of triangles
-                // alone no leaf needs its slots checked (a loop whose exit, at the
-                // leaf's size, the branch predictor misses: 1.03x on the bunny).
-                let tris_only = self.prims.triangles_only();
-                let all_tris =
-                    |g: &[u32]| tris_only || g.iter().all(|&p| p < self.prims.sphere_base);
-                if LEAF_LANES
-                    && (LEAF_LANES_MIN..=SmallLeafLanes::<W>::LANES as u32).contains(&count)
-                    && all_tris(prims)
-                {
-                    self.prims
-                        .intersect_tris_lanes::<SmallLeafLanes<W>>(prims, ray, best);
-                } else if LEAF_LANES && count >= LEAF_LANES_MIN {
-                    for group in prims.chunks(LeafLanes::<W>::LANES) {
-                        if group.len() as u32 >= LEAF_LANES_MIN && all_tris(group) {
-                            self.prims
-                                .intersect_tris_lanes::<LeafLanes<W>>(group, ray, best);
-                        } else {
-                            self.prims.intersect_leaf(group, ray, best);
+        if count == 0 {
+            return None;
+        }
+        // The lane walks test a leaf's triangles in lanes (perf/log/stream.md), for
+        // closest and any hits; the scalar path keeps one test per primitive. In a scene
+        // of triangles alone no leaf needs its slots checked (a loop whose exit, at the
+        // leaf's size, the branch predictor misses: 1.03x on the bunny).
+        let tris_only = self.prims.triangles_only();
+        let all_tris = inl(
+            #[inline(always)]
+            |g: &[u32]| tris_only || g.iter().all(|&p| p < self.prims.sphere_base),
+        );
+        // The `stats` feature's count of primitive tests.
+        let count_tests = inl(
+            #[inline(always)]
+            |g: &[u32]| bump(|c| c.prim_tests += g.len() as u64),
+        );
+        let one_by_one = inl(
+            #[inline(always)]
+            |g: &[u32], best: &mut Hit| {
+                if ANY_HIT {
+                    // A loop, not `Iterator::any`, which LLVM may keep out of line (see
+                    // `crate::simd::inl`).
+                    for &p in g {
+                        bump(|c| c.prim_tests += 1);
+                        if self.prims.intersect_prim(p, ray, ray.t_max).is_some() {
+                            return true;
                         }
                     }
                 } else {
-                    self.prims.intersect_leaf(prims, ray, best);
+                    count_tests(g);
+                    self.prims.intersect_leaf(g, ray, best);
+                }
+                false
+            },
+        );
+        if LEAF_LANES
+            && (LEAF_LANES_MIN..=SmallLeafLanes::<W>::LANES as u32).contains(&count)
+            && all_tris(prims)
+        {
+            count_tests(prims);
+            if self
+                .prims
+                .tris_lanes::<SmallLeafLanes<W>, ANY_HIT>(prims, ray, best)
+            {
+                return Some(true);
+            }
+        } else if LEAF_LANES && count >= LEAF_LANES_MIN {
+            for group in prims.chunks(LeafLanes::<W>::LANES) {
+                let hit = if group.len() as u32 >= LEAF_LANES_MIN && all_tris(group) {
+                    count_tests(group);
+                    self.prims
+                        .tris_lanes::<LeafLanes<W>, ANY_HIT>(group, ray, best)
+                } else {
+                    one_by_one(group, best)
+                };
+                if hit {
+                    return Some(true);
                 }
             }
+        } else if one_by_one(prims, best) {
+            return Some(true);
         }
         None
     }
