@@ -825,6 +825,26 @@ mod tests {
             for (k, (v_n, v_w)) in values.into_iter().enumerate() {
                 assert_eq!(bits_n(v_n), bits_w(v_w), "operation {k}, shift {shift}");
             }
+            // `mul_add_fast`: the portable backends round twice; every backend rounds
+            // either once in all lanes (as `f32::mul_add`) or twice in all lanes.
+            let c = |i: usize| xs[(i + 2 * shift + 1) % n];
+            let (c_n, c_w) = (Vf::<B>::from_fn(c), Vf::<P>::from_fn(c));
+            let twice: Vec<u32> = (0..B::LANES)
+                .map(|i| canon(xs[i % n] * xs[(i + shift) % n] + c(i)))
+                .collect();
+            let once: Vec<u32> = (0..B::LANES)
+                .map(|i| canon(xs[i % n].mul_add(xs[(i + shift) % n], c(i))))
+                .collect();
+            assert_eq!(
+                bits_w(a_w.mul_add_fast(b_w, c_w)),
+                twice,
+                "portable mul_add_fast"
+            );
+            let fast = bits_n(a_n.mul_add_fast(b_n, c_n));
+            assert!(
+                fast == once || fast == twice,
+                "mul_add_fast, shift {shift}: {fast:?} is neither {once:?} nor {twice:?}"
+            );
             let masks = [
                 (a_n.cmp_lt(b_n), a_w.cmp_lt(b_w)),
                 (a_n.cmp_gt(b_n), a_w.cmp_gt(b_w)),

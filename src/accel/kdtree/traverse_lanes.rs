@@ -33,7 +33,7 @@ use super::KdTree;
 use super::node::{LEFT_EMPTY, NodeLanes, RIGHT_EMPTY, as_words};
 use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack, Walk};
-use super::traverse_packet::clip_to_box_packet;
+use super::traverse_packet::{clip_to_box_packet, step_overflows};
 use crate::accel::packet::RayPacket;
 use crate::ray::{Hit, Ray};
 use crate::simd::{
@@ -448,7 +448,7 @@ impl KdTree {
             // Rays whose `org * inv` or `split * inv` could overflow take the scalar
             // walk: fused, `split * inv + (-inf)` would be `-inf` where the plane lies
             // ahead (rounded twice, it is NaN and visits both children).
-            scalar |= !(reach * inv.abs() * splat(2.0)).finite();
+            scalar |= step_overflows(reach, inv);
             let margin = reach * splat(PLANE_SLACK);
             let slack = margin * inv.abs();
             let base = -(p.org[a] * inv);
@@ -744,8 +744,8 @@ mod tests {
 
     /// [`KdTree::start_block`] sets up every ray as [`KdTree::start_walk`] does, bit for
     /// bit, and sends to the scalar walk exactly the rays with a direction component
-    /// whose inverse may overflow the node step; a walking ray starts at the block's shared node with the
-    /// interval and stack its scalar walk has after as many steps.
+    /// whose inverse may overflow the node step; a walking ray starts at the block's
+    /// shared node with the interval and stack its scalar walk has after as many steps.
     #[inline(always)]
     fn blocks_match_scalar<W: Simd>() {
         let g = random_soup(500, 0.2, 11);

@@ -114,12 +114,18 @@ pub(super) fn overflow_lanes<W: Simd>(b: &Aabb, rays: &RayPacket<W>) -> Mask<W> 
     let reach = Vf::<W>::splat(coord_max) + max_abs(&rays.org);
     let over = inl(
         #[inline(always)]
-        |a: usize| {
-            !rays.dir[a].cmp_eq(Vf::<W>::ZERO)
-                & !(reach * rays.inv_dir[a].abs() * Vf::<W>::splat(2.0)).finite()
-        },
+        |a: usize| !rays.dir[a].cmp_eq(Vf::<W>::ZERO) & step_overflows(reach, rays.inv_dir[a]),
     );
     over(0) | over(1) | over(2)
+}
+
+/// The one rule of every SIMD walk's overflow guard ([`overflow_lanes`], the tile's
+/// bound, the lane walks' starts): on an axis whose reciprocal direction is `inv`, with
+/// `reach = coord_max + |org|max` (the largest coordinate a split or the origin has),
+/// `reach * |inv| * 2` is not finite. Zero components (infinite `inv`) are set too.
+#[inline(always)]
+pub(super) fn step_overflows<F: Float>(reach: F, inv: F) -> F::Mask {
+    !(reach * inv.abs() * F::splat(2.0)).finite()
 }
 
 /// Lane groups of `active` that agree on every direction sign, counting the packets

@@ -35,7 +35,7 @@
 use super::KdTree;
 use super::stats::bump;
 use super::traverse::{PLANE_SLACK, Stack};
-use super::traverse_packet::clip_to_box_packet;
+use super::traverse_packet::{clip_to_box_packet, step_overflows};
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs};
@@ -576,7 +576,7 @@ impl KdTree {
                 // A zero (or subnormal) component has no finite reciprocal, and a tiny
                 // one a step that may overflow (`overflow_lanes`).
                 let reach = splat(coord_max[a]) + o_max;
-                if (lanes & !(reach * inv.abs() * splat(2.0)).finite()).any() {
+                if (lanes & step_overflows(reach, inv)).any() {
                     return None;
                 }
                 let slack = reach * splat(PLANE_SLACK) * inv.abs();
