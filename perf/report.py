@@ -529,9 +529,13 @@ def measure_builds(rows, raypack, embree, cache, cfg):
             with tempfile.TemporaryDirectory() as tmp:
                 j = Path(tmp) / "info.json"
                 run([raypack, "info", row["raypack"], "--threads", threads, "--repeat",
-                     cfg["builds"], "--json", j], 1800)
+                     cfg["builds"], "--json", j] + (["--occupancy"] if threads == 2 else []),
+                    1800)
                 info = json.loads(j.read_text())
             r[f"raypack_{threads}"] = info["build_seconds"]["median"]
+            if threads == 2 and info.get("occupancy"):
+                r["serial"] = info["occupancy"]["serial_fraction"]
+                r["amdahl_16"] = info["occupancy"]["amdahl_16"]
             r.update({"triangles": info["triangles"], "builder": info["builder"],
                       "nodes": info["nodes"], "sah": info["sah"]["cost"],
                       "bytes": info["memory"]["total"]["bytes"]})
@@ -776,15 +780,22 @@ def section_build(builds, have_embree, cfg, quick_flag):
             " Embree: the harness's `BUILD` line (`rtcCommitScene` alone) with "
             "`--build-threads T`, taken right after raypack's." if have_embree else "") +
         " *Tree memory* is raypack's whole tree (`raypack info`'s `memory total`: nodes, "
-        "leaf table, index lists and TriAccel records), also per triangle of the scene.")
+        "leaf table, index lists and TriAccel records), also per triangle of the scene. "
+        "*Serial part* is the share of the build's work done while fewer than both "
+        "threads worked, in the 2-thread builds (`--occupancy`: the build marks which "
+        "threads work when, src/accel/occupancy.rs), and *Amdahl 16* the speedup on 16 "
+        "threads that Amdahl's law predicts from it, 1 / (f + (1 - f) / 16).")
     out.append("")
-    header = ["scene", "triangles", "raypack 1 thread", "raypack 2 threads"]
+    header = ["scene", "triangles", "raypack 1 thread", "raypack 2 threads", "serial part",
+              "Amdahl 16"]
     if have_embree:
         header += ["Embree high, 1 thread", "Embree high, 2 threads", "Embree medium, 2 threads"]
     header += ["nodes", "tree memory", "bytes / triangle", "SAH cost"]
     body = []
     for b in builds:
-        line = [b["scene"], f"{b['triangles']:,}", secs(b["raypack_1"]), secs(b["raypack_2"])]
+        line = [b["scene"], f"{b['triangles']:,}", secs(b["raypack_1"]), secs(b["raypack_2"]),
+                f"{100 * b['serial']:.1f}%" if b.get("serial") is not None else "-",
+                f"{b['amdahl_16']:.1f}x" if b.get("amdahl_16") is not None else "-"]
         if have_embree:
             line += [secs(b.get("embree_high_1")), secs(b.get("embree_high_2")),
                      secs(b.get("embree_medium_2"))]

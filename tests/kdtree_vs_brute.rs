@@ -16,6 +16,7 @@ use rayon::prelude::*;
 use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::kdtree::{BuildParams, BuilderKind, KdTree};
+use raypack::accel::occupancy::Occupancy;
 use raypack::ray::{Hit, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane};
@@ -265,11 +266,23 @@ fn parallel_equals_serial(params: BuildParams) {
         .build()
         .expect("thread pool");
     let c = pool.install(|| build_checked(&g, &parallel));
+    // Metered builds mark at most as many threads working as they have: a span marked
+    // twice (a hand-off missing around a parallel step) would show one more.
+    let (on_one, on_two) = (Occupancy::new(), Occupancy::new());
+    let d = KdTree::build_metered(&g, &serial, on_one.meter());
+    let e = pool.install(|| KdTree::build_metered(&g, &parallel, on_two.meter()));
+    assert_eq!(on_one.peak(), 1, "serial build: {:?}", on_one.seconds());
+    assert_eq!(on_two.peak(), 2, "parallel build: {:?}", on_two.seconds());
     assert!(
         a.nodes().len() > 1000,
         "tree too small to exercise the parallel build"
     );
-    for (other, what) in [(&b, "second serial build"), (&c, "parallel build")] {
+    for (other, what) in [
+        (&b, "second serial build"),
+        (&c, "parallel build"),
+        (&d, "metered serial build"),
+        (&e, "metered parallel build"),
+    ] {
         assert!(node_bits(&a) == node_bits(other), "{what}: nodes differ");
         assert!(a.leaves() == other.leaves(), "{what}: leaves differ");
         assert!(

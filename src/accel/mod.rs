@@ -12,6 +12,7 @@
 pub mod axis;
 pub mod brute;
 pub mod kdtree;
+pub mod occupancy;
 pub mod packet;
 pub mod prims;
 pub mod prims_packet;

@@ -7,6 +7,7 @@
 //! triangles, for the kd-tree's lane walks, is [`Prims::intersect_tris_lanes`] in
 //! [`crate::accel::triaccel_leaf`].
 
+use crate::accel::occupancy::Meter;
 use crate::accel::triaccel::TriAccel;
 use crate::geom::{Aabb, Geometry, Plane, Sphere};
 use crate::ray::{Hit, Ray};
@@ -45,12 +46,13 @@ pub struct Prims {
 impl Prims {
     /// The records of `g`'s primitives, ids in `g`'s order (RAYS.md's for triangles).
     pub fn new(g: &Geometry) -> Prims {
-        Prims::with(g, false)
+        Prims::with(g, false, Meter::OFF)
     }
 
     /// [`Prims::new`], the triangles' records made on the current rayon pool when
-    /// `parallel` (the same records: each depends on its triangle alone).
-    pub fn with(g: &Geometry, parallel: bool) -> Prims {
+    /// `parallel` (the same records: each depends on its triangle alone), the pool's
+    /// work marked on `meter`.
+    pub fn with(g: &Geometry, parallel: bool, meter: Meter) -> Prims {
         use rayon::prelude::*;
         let sphere_base = g.triangles.len() as u32;
         let box_base = sphere_base + g.spheres.len() as u32;
@@ -60,9 +62,18 @@ impl Prims {
         let record =
             |(id, &[a, b, c]): (usize, &[Vec3; 3])| TriAccel::new(a, b, c).with_id(id as u32);
         let (corners, tris): (Vec<[Vec3; 3]>, Vec<TriAccel>) = if parallel {
-            let corners: Vec<_> = ids.into_par_iter().map(|i| g.triangle(i)).collect();
-            let tris = corners.par_iter().enumerate().map(record).collect();
-            (corners, tris)
+            // Jobs of at least 1024 triangles: each marks itself working on `meter`.
+            meter.hand_off(|| {
+                let corners: Vec<_> = (ids.into_par_iter())
+                    .with_min_len(1024)
+                    .map_init(|| meter.working(), |_, i| g.triangle(i))
+                    .collect();
+                let tris = (corners.par_iter().enumerate())
+                    .with_min_len(1024)
+                    .map_init(|| meter.working(), |_, c| record(c))
+                    .collect();
+                (corners, tris)
+            })
         } else {
             let corners: Vec<_> = ids.map(|i| g.triangle(i)).collect();
             let tris = corners.iter().enumerate().map(record).collect();

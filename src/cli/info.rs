@@ -13,6 +13,7 @@
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::kdtree::{BuildParams, KdTree};
+use raypack::accel::occupancy::{Meter, Occupancy};
 use raypack::rayset::standard;
 use raypack::scene::catalog as scenes;
 use serde::Serialize;
@@ -34,6 +35,10 @@ pub struct Args {
     /// Also trace the camera's 1024x768 primary rays on one thread (scalar path).
     #[arg(long)]
     pub primary: bool,
+    /// Also mark how many threads work on each build at each moment and print the
+    /// median build's record: its serial part and the speedups it predicts on 16 cores.
+    #[arg(long)]
+    pub occupancy: bool,
     /// Also write what is printed, and the build's peak extra memory, as JSON to FILE.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -72,6 +77,40 @@ struct Primary {
     checksum: String,
 }
 
+/// The median build's [`Occupancy`] record (`--occupancy`).
+#[derive(Serialize, Debug)]
+struct OccupancyReport {
+    /// Seconds with 0, 1, 2, ... threads working.
+    seconds_working: Vec<f64>,
+    cores: usize,
+    /// With a pool no larger than the cores: the time with fewer threads working than
+    /// the pool has, as a fraction of the work, and Amdahl's 16-thread speedup from it.
+    serial_fraction: Option<f64>,
+    amdahl_16: Option<f64>,
+    /// The speedup 16 cores would reach over one, from how many threads worked at a
+    /// time ([`Occupancy::predicted_wall`]): telling with a pool of 16 or more.
+    profile_16: f64,
+}
+
+impl OccupancyReport {
+    fn new(o: &Occupancy, threads: usize) -> OccupancyReport {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let (serial_fraction, amdahl_16) = if threads >= 2 && threads <= cores {
+            let (f, s) = o.amdahl(threads, 16);
+            (Some(f), Some(s))
+        } else {
+            (None, None)
+        };
+        OccupancyReport {
+            seconds_working: o.seconds(),
+            cores,
+            serial_fraction,
+            amdahl_16,
+            profile_16: o.predicted_wall(cores, 1) / o.predicted_wall(cores, 16),
+        }
+    }
+}
+
 /// Everything `info` prints, for scripts (`--json`).
 #[derive(Serialize, Debug)]
 struct Report {
@@ -98,6 +137,8 @@ struct Report {
     mean_prims_per_leaf: f64,
     refs_per_prim: f64,
     sah: Sah,
+    /// With `--occupancy`.
+    occupancy: Option<OccupancyReport>,
     memory: std::collections::BTreeMap<&'static str, Part>,
     primary: Option<Primary>,
 }
@@ -140,14 +181,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .build()
         .context("starting the build threads")?;
     let mut seconds = Vec::new();
+    let mut occupancies = Vec::new();
     let mut tree = None;
     let mut peak_extra: Option<u64> = None;
     for _ in 0..args.repeat {
         drop(tree.take());
+        let occupancy = Occupancy::new();
+        let meter = if args.occupancy {
+            occupancy.meter()
+        } else {
+            Meter::OFF
+        };
         let before = reset_peak();
         let start = Instant::now();
-        tree = Some(pool.install(|| KdTree::build_with(geometry, &params)));
-        seconds.push(start.elapsed().as_secs_f64());
+        tree = Some(pool.install(|| KdTree::build_metered(geometry, &params, meter)));
+        let elapsed = start.elapsed().as_secs_f64();
+        seconds.push(elapsed);
+        occupancies.push((elapsed, occupancy));
         let extra = before
             .zip(proc_status_bytes("VmHWM"))
             .map(|(before, peak)| peak.saturating_sub(before));
@@ -186,6 +236,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seconds[0],
         params.builder
     );
+    let occupancy = args.occupancy.then(|| {
+        occupancies.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let report = OccupancyReport::new(&occupancies[occupancies.len() / 2].1, threads);
+        let at: Vec<String> = (report.seconds_working.iter())
+            .map(|t| format!("{t:.4}"))
+            .collect();
+        outln!(
+            "occupancy        seconds with 0, 1, 2, ... threads working: {} (median build)",
+            at.join(" / ")
+        );
+        if let (Some(f), Some(s)) = (report.serial_fraction, report.amdahl_16) {
+            outln!(
+                "serial part      {:.1}% of the work ran with fewer than {threads} threads working: Amdahl predicts {s:.1}x on 16 threads",
+                100.0 * f
+            );
+        }
+        outln!(
+            "parallelism      {:.1}x on 16 cores over one, from the threads working at a time ({} on {})",
+            report.profile_16,
+            super::count(threads, "thread"),
+            super::count(report.cores, "core"),
+        );
+        report
+    });
     match peak_extra {
         Some(bytes) => outln!(
             "build peak extra {:.2} MiB (peak resident set over the build, tree included)",
@@ -301,6 +375,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 min_saving: params.min_saving,
                 empty_cut: params.empty_cut,
             },
+            occupancy,
             memory,
             primary,
         };

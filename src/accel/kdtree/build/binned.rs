@@ -27,6 +27,7 @@ use super::{
     refs_bounds, tree_bounds,
 };
 use crate::accel::Prims;
+use crate::accel::occupancy::Meter;
 use crate::geom::{Aabb, Geometry};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -252,10 +253,23 @@ struct Window {
 
 /// The references of the root: every bounded primitive that goes into the tree, in id
 /// order, with its bounds.
-pub(super) fn root_refs(g: &Geometry, prims: &Prims, bounded: u32, parallel: bool) -> Vec<Ref> {
+pub(super) fn root_refs(
+    g: &Geometry,
+    prims: &Prims,
+    bounded: u32,
+    parallel: bool,
+    meter: Meter,
+) -> Vec<Ref> {
     let one = |prim: u32| tree_bounds(g, prims, prim).map(|bounds| Ref { bounds, prim });
     if parallel {
-        (0..bounded).into_par_iter().filter_map(one).collect()
+        meter.hand_off(|| {
+            (0..bounded)
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map_init(|| meter.working(), |_, prim| one(prim))
+                .flatten_iter()
+                .collect()
+        })
     } else {
         // Sized up front: a filter's collect would grow the array by copies.
         let mut refs = Vec::with_capacity(bounded as usize);
@@ -328,18 +342,30 @@ impl Builder<'_> {
         let first = out.inner(slot, axis, pos);
         let big = left.len().max(right.len()) >= self.params.parallel_min_prims as usize;
         if self.params.parallel && big {
-            let (_, sub) = rayon::join(
-                || self.build_binned(left_cell, left, depth + 1, first, out, space),
-                || {
-                    let mut sub = Out::apart();
-                    let mut space = None;
-                    self.build_binned(right_cell, right, depth + 1, 0, &mut sub, &mut space);
-                    if let Some(space) = space {
-                        self.put_space(space);
-                    }
-                    sub
-                },
-            );
+            let m = self.meter;
+            let (_, sub) = m.hand_off(|| {
+                rayon::join(
+                    || m.work(|| self.build_binned(left_cell, left, depth + 1, first, out, space)),
+                    || {
+                        m.work(|| {
+                            let mut sub = Out::apart();
+                            let mut space = None;
+                            self.build_binned(
+                                right_cell,
+                                right,
+                                depth + 1,
+                                0,
+                                &mut sub,
+                                &mut space,
+                            );
+                            if let Some(space) = space {
+                                self.put_space(space);
+                            }
+                            sub
+                        })
+                    },
+                )
+            });
             out.append(sub, first + 1);
         } else {
             self.build_binned(left_cell, left, depth + 1, first, out, space);
@@ -357,13 +383,18 @@ impl Builder<'_> {
     fn binned_plane(&self, cell: &Aabb, refs: &[Ref]) -> Option<(usize, f32)> {
         let binner = Binner::new(cell, refs.len());
         let bins = if self.parallel_here(refs.len()) {
-            refs.par_chunks(CHUNK)
-                .map(|chunk| {
-                    let mut bins = Bins::zero();
-                    binner.count(chunk, &mut bins);
-                    bins
-                })
-                .reduce(Bins::zero, Bins::add)
+            let m = self.meter;
+            m.hand_off(|| {
+                refs.par_chunks(CHUNK)
+                    .map(|chunk| {
+                        m.work(|| {
+                            let mut bins = Bins::zero();
+                            binner.count(chunk, &mut bins);
+                            bins
+                        })
+                    })
+                    .reduce(Bins::zero, |a, b| m.work(|| Bins::add(a, b)))
+            })
         } else {
             let mut bins = Box::new(Bins::ZERO);
             binner.count(refs, &mut bins);
@@ -483,10 +514,12 @@ impl Builder<'_> {
     /// [`CUT_WITHIN_BELOW`] references cut by the plane alone within their bounds.
     fn partition(&self, refs: &mut Vec<Ref>, cell: &Aabb, axis: usize, pos: f32) -> Vec<Ref> {
         if self.parallel_here(refs.len()) {
-            let parts: Vec<(usize, Vec<Ref>)> = refs
-                .par_chunks_mut(CHUNK)
-                .map(|chunk| self.partition_in_place(chunk, cell, axis, pos, false))
-                .collect();
+            let m = self.meter;
+            let parts: Vec<(usize, Vec<Ref>)> = m.hand_off(|| {
+                refs.par_chunks_mut(CHUNK)
+                    .map(|chunk| m.work(|| self.partition_in_place(chunk, cell, axis, pos, false)))
+                    .collect()
+            });
             // Each chunk's left references are at its front: close the gaps.
             let mut n_left = 0;
             for (k, &(chunk_left, _)) in parts.iter().enumerate() {

@@ -33,6 +33,7 @@ mod sweep;
 use super::KdTree;
 use super::node::{KdNode, MAX_CHILD, MAX_INDEX};
 use crate::accel::Prims;
+use crate::accel::occupancy::Meter;
 use crate::geom::{Aabb, Geometry, PrimRef};
 use clip::{clip_triangle, intersect_boxes, split_triangle, split_triangle_within};
 use glam::Vec3;
@@ -266,6 +267,8 @@ struct Builder<'a> {
     prim_total: usize,
     /// Sweep buffers that subtrees built apart have given back.
     spare: std::sync::Mutex<Vec<sweep::SweepSpace>>,
+    /// Where the work handed to the pool is marked.
+    meter: Meter<'a>,
     /// [`BuildParams::min_saving`] times the root cell's surface area (0 for the exact
     /// builder): what `(K_I n - K_T)` times a node's surface area must reach.
     min_saving_area: f32,
@@ -393,11 +396,22 @@ impl KdTree {
 
     /// Builds the tree of `g`'s bounded primitives.
     pub fn build_with(g: &Geometry, params: &BuildParams) -> KdTree {
+        KdTree::build_metered(g, params, Meter::OFF)
+    }
+
+    /// [`KdTree::build_with`], marking on `meter` how many threads work at each moment
+    /// (`raypack info --occupancy`): the calling thread works throughout, but while
+    /// it hands work to the pool.
+    pub fn build_metered(g: &Geometry, params: &BuildParams, meter: Meter) -> KdTree {
+        meter.work(|| KdTree::build_marked(g, params, meter))
+    }
+
+    fn build_marked(g: &Geometry, params: &BuildParams, meter: Meter) -> KdTree {
         let start = Instant::now();
-        let prims = Prims::with(g, params.parallel);
+        let prims = Prims::with(g, params.parallel, meter);
         let bounded = g.bounded_count();
         assert!(bounded <= MAX_INDEX, "kd-tree: more than 2^30 primitives");
-        let refs = binned::root_refs(g, &prims, bounded, params.parallel);
+        let refs = binned::root_refs(g, &prims, bounded, params.parallel, meter);
         let cell = refs_bounds(&refs);
         let prim_count = refs.len() as u32;
         let max_depth = params
@@ -411,6 +425,7 @@ impl KdTree {
             max_depth,
             prim_total: bounded as usize,
             spare: Default::default(),
+            meter,
             min_saving_area: match params.builder {
                 BuilderKind::Exact => 0.0,
                 BuilderKind::Fast => params.min_saving * cell.surface_area(),

@@ -205,7 +205,12 @@ impl Builder<'_> {
         }
         if parallel_sort {
             use rayon::prelude::*;
-            events.par_iter_mut().for_each(|l| l.sort_unstable());
+            let m = self.meter;
+            m.hand_off(|| {
+                events
+                    .par_iter_mut()
+                    .for_each(|l| m.work(|| l.sort_unstable()))
+            });
         } else {
             events.iter_mut().for_each(|l| l.sort_unstable());
         }
@@ -266,19 +271,24 @@ impl Builder<'_> {
         let first = out.inner(slot, split.axis, split.pos);
         let big = n_left.max(n_right) >= self.params.parallel_min_prims;
         if self.params.parallel && big {
-            let (_, sub) = rayon::join(
-                || self.build_node(left, first, out, scratch, deeper),
-                || {
-                    let mut sub = Out::apart();
-                    // The spare's scratch, but lists of its own: they would keep this
-                    // subtree's size in the spare after it is done.
-                    let mut space = self.take_space();
-                    let mut levels = new_levels();
-                    self.build_node(right, 0, &mut sub, &mut space.scratch, &mut levels);
-                    self.put_space(space);
-                    sub
-                },
-            );
+            let m = self.meter;
+            let (_, sub) = m.hand_off(|| {
+                rayon::join(
+                    || m.work(|| self.build_node(left, first, out, scratch, deeper)),
+                    || {
+                        m.work(|| {
+                            let mut sub = Out::apart();
+                            // The spare's scratch, but lists of its own: they would keep
+                            // this subtree's size in the spare after it is done.
+                            let mut space = self.take_space();
+                            let mut levels = new_levels();
+                            self.build_node(right, 0, &mut sub, &mut space.scratch, &mut levels);
+                            self.put_space(space);
+                            sub
+                        })
+                    },
+                )
+            });
             out.append(sub, first + 1);
         } else {
             self.build_node(left, first, out, scratch, deeper);
