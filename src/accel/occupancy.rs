@@ -12,6 +12,13 @@
 use std::sync::Mutex;
 use std::time::Instant;
 
+/// Items per job of the build's flat parallel passes (`with_min_len(JOB)
+/// .with_max_len(JOB)`; chunked passes take one chunk per job). Rayon's adaptive split
+/// hands each thread a few large pieces, and a thread that finishes first finds
+/// nothing to steal from the last one: up to a quarter of a pass ran on one thread.
+/// Jobs this size keep the tail short and their marks cheap.
+pub const JOB: usize = 4096;
+
 /// The record: seconds spent with each number of threads working.
 #[derive(Debug)]
 pub struct Occupancy {

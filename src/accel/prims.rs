@@ -7,7 +7,7 @@
 //! triangles, for the kd-tree's lane walks, is [`Prims::intersect_tris_lanes`] in
 //! [`crate::accel::triaccel_leaf`].
 
-use crate::accel::occupancy::Meter;
+use crate::accel::occupancy::{JOB, Meter};
 use crate::accel::triaccel::TriAccel;
 use crate::geom::{Aabb, Geometry, Plane, Sphere};
 use crate::ray::{Hit, Ray};
@@ -62,14 +62,15 @@ impl Prims {
         let record =
             |(id, &[a, b, c]): (usize, &[Vec3; 3])| TriAccel::new(a, b, c).with_id(id as u32);
         let (corners, tris): (Vec<[Vec3; 3]>, Vec<TriAccel>) = if parallel {
-            // Jobs of at least 1024 triangles: each marks itself working on `meter`.
             meter.hand_off(|| {
                 let corners: Vec<_> = (ids.into_par_iter())
-                    .with_min_len(1024)
+                    .with_min_len(JOB)
+                    .with_max_len(JOB)
                     .map_init(|| meter.working(), |_, i| g.triangle(i))
                     .collect();
                 let tris = (corners.par_iter().enumerate())
-                    .with_min_len(1024)
+                    .with_min_len(JOB)
+                    .with_max_len(JOB)
                     .map_init(|| meter.working(), |_, c| record(c))
                     .collect();
                 (corners, tris)
@@ -93,10 +94,28 @@ impl Prims {
 
     /// Places the triangles' records in `order`: slot `s` gets the triangle that was in
     /// slot `order[s]` (`order` a permutation of the slots).
-    pub fn reorder_triangles(&mut self, order: &[u32]) {
+    /// On the current rayon pool when `parallel`, marked on `meter`.
+    pub fn reorder_triangles(&mut self, order: &[u32], parallel: bool, meter: Meter) {
+        use rayon::prelude::*;
         debug_assert_eq!(order.len(), self.tris.len());
-        self.tris = order.iter().map(|&s| self.tris[s as usize]).collect();
-        self.corners = order.iter().map(|&s| self.corners[s as usize]).collect();
+        if parallel {
+            meter.hand_off(|| {
+                let tris = (order.par_iter())
+                    .with_min_len(JOB)
+                    .with_max_len(JOB)
+                    .map_init(|| meter.working(), |_, &s| self.tris[s as usize])
+                    .collect();
+                let corners = (order.par_iter())
+                    .with_min_len(JOB)
+                    .with_max_len(JOB)
+                    .map_init(|| meter.working(), |_, &s| self.corners[s as usize])
+                    .collect();
+                (self.tris, self.corners) = (tris, corners);
+            })
+        } else {
+            self.tris = order.iter().map(|&s| self.tris[s as usize]).collect();
+            self.corners = order.iter().map(|&s| self.corners[s as usize]).collect();
+        }
     }
 
     /// True when every bounded primitive is a triangle (no spheres or boxes): a leaf's

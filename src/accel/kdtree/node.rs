@@ -16,6 +16,7 @@
 //! the split word), so traversal reads a leaf's primitives without the table lookup.
 //! The nodes of a built [`super::KdTree`] are in that form.
 
+use crate::accel::occupancy::{JOB, Meter};
 use crate::simd::{Mask, Simd, Uint, Vu, inl};
 
 /// Axis value that marks a leaf.
@@ -183,18 +184,25 @@ impl<W: Simd> NodeLanes<W> {
 /// load at all). Panics if the index list outgrows the 30 bits.
 #[inline(always)]
 pub fn with_leaf_ranges(mut nodes: Vec<KdNode>, leaves: &[[u32; 2]]) -> Vec<KdNode> {
-    for n in nodes.iter_mut().filter(
-        #[inline(always)]
-        |n| n.is_leaf(),
-    ) {
-        let [first, count] = leaves[n.leaf_index() as usize];
-        assert!(
-            first <= MAX_INDEX,
-            "kd-tree: index list exceeds 2^30 entries"
-        );
-        *n = KdNode::leaf_range(first, count);
+    for n in nodes.iter_mut() {
+        *n = ranged(*n, leaves);
     }
     nodes
+}
+
+/// `n`, if a leaf-table leaf, as its `[first, count]` range from `leaves`
+/// ([`with_leaf_ranges`]).
+#[inline(always)]
+pub fn ranged(n: KdNode, leaves: &[[u32; 2]]) -> KdNode {
+    if !n.is_leaf() {
+        return n;
+    }
+    let [first, count] = leaves[n.leaf_index() as usize];
+    assert!(
+        first <= MAX_INDEX,
+        "kd-tree: index list exceeds 2^30 entries"
+    );
+    KdNode::leaf_range(first, count)
 }
 
 /// The [`KdNode::empty_children`] bits of the child pair starting at `left`.
@@ -212,11 +220,22 @@ pub fn empty_flags(nodes: &[KdNode], left: usize) -> u32 {
 #[inline(always)]
 pub fn mark_empty_children(nodes: &mut [KdNode]) {
     for i in 0..nodes.len() {
-        let n = nodes[i];
-        if !n.is_leaf() {
-            let flags = empty_flags(nodes, n.children() as usize);
-            nodes[i].bits = (n.bits & !(3 << 2)) | (flags << 2);
-        }
+        nodes[i] = marked(nodes, i);
+    }
+}
+
+/// Node `i` of `nodes` with its [`KdNode::empty_children`] bits set
+/// ([`mark_empty_children`]).
+#[inline(always)]
+fn marked(nodes: &[KdNode], i: usize) -> KdNode {
+    let n = nodes[i];
+    if n.is_leaf() {
+        return n;
+    }
+    let flags = empty_flags(nodes, n.children() as usize);
+    KdNode {
+        bits: (n.bits & !(3 << 2)) | (flags << 2),
+        ..n
     }
 }
 
@@ -251,6 +270,40 @@ impl From<Vec<KdNode>> for AlignedNodes {
                 },
             )
             .collect();
+        AlignedNodes {
+            blocks,
+            len: nodes.len(),
+        }
+    }
+}
+
+impl AlignedNodes {
+    /// `nodes` (ranged leaves where they are leaves) with every inner node's empty-child
+    /// bits set ([`mark_empty_children`]), the blocks made on the current rayon pool:
+    /// the build's last pass.
+    pub fn marked_in_parallel(nodes: &[KdNode], meter: Meter) -> AlignedNodes {
+        use rayon::prelude::*;
+        let pad = KdNode::leaf(0);
+        let blocks = meter.hand_off(|| {
+            (0..nodes.len().div_ceil(8))
+                .into_par_iter()
+                .with_min_len(JOB / 8)
+                .with_max_len(JOB / 8)
+                .map_init(
+                    || meter.working(),
+                    |_, b| {
+                        NodeBlock(std::array::from_fn(|k| {
+                            let i = 8 * b + k;
+                            if i < nodes.len() {
+                                marked(nodes, i)
+                            } else {
+                                pad
+                            }
+                        }))
+                    },
+                )
+                .collect()
+        });
         AlignedNodes {
             blocks,
             len: nodes.len(),
@@ -369,6 +422,22 @@ mod tests {
             assert_eq!((n.axis(), n.split, n.children()), (axis, split, children));
         }
         assert_eq!((nodes[3].leaf_first(), nodes[3].leaf_count()), (4, 2));
+    }
+
+    #[test]
+    fn parallel_marking_is_the_serial_marking() {
+        // A chain of inner nodes whose children are empty or full leaves, across blocks.
+        let mut nodes = vec![KdNode::inner(0, 0.5, 1)];
+        for i in 0..40u32 {
+            let left = nodes.len() as u32;
+            nodes.push(KdNode::leaf_range(i, i % 3));
+            nodes.push(KdNode::inner(i % 3, i as f32, left + 2));
+        }
+        nodes.extend([KdNode::leaf_range(0, 0), KdNode::leaf_range(1, 1)]);
+        let parallel = AlignedNodes::marked_in_parallel(&nodes, Meter::OFF);
+        mark_empty_children(&mut nodes);
+        assert_eq!(&parallel[..], &nodes[..]);
+        assert!(nodes.iter().any(|n| n.empty_children() != 0));
     }
 
     #[test]

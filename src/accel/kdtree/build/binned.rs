@@ -20,6 +20,7 @@
 //!   outputs are concatenated in order, so the result is the serial one. Large subtrees
 //!   are built in parallel as in the sweep.
 
+use super::out::concat;
 use super::small::SMALL;
 use super::sweep::SweepSpace;
 use super::{
@@ -27,7 +28,7 @@ use super::{
     refs_bounds, tree_bounds,
 };
 use crate::accel::Prims;
-use crate::accel::occupancy::Meter;
+use crate::accel::occupancy::{JOB, Meter};
 use crate::geom::{Aabb, Geometry};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -262,14 +263,21 @@ pub(super) fn root_refs(
 ) -> Vec<Ref> {
     let one = |prim: u32| tree_bounds(g, prims, prim).map(|bounds| Ref { bounds, prim });
     if parallel {
-        meter.hand_off(|| {
-            (0..bounded)
+        let job = JOB as u32;
+        let parts: Vec<Vec<Ref>> = meter.hand_off(|| {
+            (0..bounded.div_ceil(job))
                 .into_par_iter()
-                .with_min_len(CHUNK)
-                .map_init(|| meter.working(), |_, prim| one(prim))
-                .flatten_iter()
+                .map(|c| {
+                    meter.work(|| {
+                        (c * job..bounded.min(c * job + job))
+                            .filter_map(one)
+                            .collect()
+                    })
+                })
                 .collect()
-        })
+        });
+        let parts: Vec<((), &[Ref])> = parts.iter().map(|p| ((), &p[..])).collect();
+        concat(&parts, |_, r| *r, Ref::NONE, true, meter)
     } else {
         // Sized up front: a filter's collect would grow the array by copies.
         let mut refs = Vec::with_capacity(bounded as usize);
@@ -386,6 +394,7 @@ impl Builder<'_> {
             let m = self.meter;
             m.hand_off(|| {
                 refs.par_chunks(CHUNK)
+                    .with_max_len(1)
                     .map(|chunk| {
                         m.work(|| {
                             let mut bins = Bins::zero();
@@ -517,18 +526,19 @@ impl Builder<'_> {
             let m = self.meter;
             let parts: Vec<(usize, Vec<Ref>)> = m.hand_off(|| {
                 refs.par_chunks_mut(CHUNK)
+                    .with_max_len(1)
                     .map(|chunk| m.work(|| self.partition_in_place(chunk, cell, axis, pos, false)))
                     .collect()
             });
-            // Each chunk's left references are at its front: close the gaps.
-            let mut n_left = 0;
-            for (k, &(chunk_left, _)) in parts.iter().enumerate() {
-                refs.copy_within(k * CHUNK..k * CHUNK + chunk_left, n_left);
-                n_left += chunk_left;
-            }
-            refs.truncate(n_left);
-            let mut right = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
-            parts.iter().for_each(|(_, r)| right.extend_from_slice(r));
+            // Each chunk's left references are at its front: both sides are copied
+            // out whole, in parallel.
+            let lefts: Vec<((), &[Ref])> = (parts.iter().enumerate())
+                .map(|(k, &(chunk_left, _))| ((), &refs[k * CHUNK..][..chunk_left]))
+                .collect();
+            let left = concat(&lefts, |_, r| *r, Ref::NONE, true, m);
+            let rights: Vec<((), &[Ref])> = parts.iter().map(|(_, r)| ((), &r[..])).collect();
+            let right = concat(&rights, |_, r| *r, Ref::NONE, true, m);
+            *refs = left;
             right
         } else {
             let loose = refs.len() < CUT_WITHIN_BELOW;
