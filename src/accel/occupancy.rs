@@ -110,7 +110,10 @@ impl Occupancy {
     /// least `n` threads on `cores` cores: `k` threads working got `min(k, cores)`
     /// cores' worth of work done, which `min(k, n)` cores would do in proportion. A
     /// pool of 16 threads on 2 cores shows how much parallelism the job offers 16 cores,
-    /// where a pool of 2 cannot.
+    /// where a pool of 2 cannot. Indicative only: threads that spin while looking for
+    /// work take cores from those working, and short jobs meet the scheduler's time
+    /// slices. On 2 cores a perfectly parallel job of 1.4 s, in 512 jobs, reads 15.2x of
+    /// 16; one of 0.08 s reads 9.6x.
     pub fn predicted_wall(&self, cores: usize, n: usize) -> f64 {
         self.seconds()
             .iter()
