@@ -43,7 +43,7 @@ use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
-use crate::simd::{LaneBits, Simd, W4, W8, W16, inl, scalar_entry};
+use crate::simd::{LaneBits, W4, W8, W16, scalar_entry};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -53,20 +53,6 @@ const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
 
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
 pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
-
-/// The lane walks (stream queries) test groups of at least this many triangles of a leaf in lanes
-/// (one triangle alone is faster scalar: perf/log/stream.md).
-pub const LEAF_LANES_MIN: u32 = 2;
-
-/// The width of those groups: 8 lanes (16 measured slower, perf/log/stream.md: a diffuse
-/// ray's leaves hold few triangles), in the walk's instruction set ([`Simd::X8`]: the
-/// portable 8 lanes are two SSE registers filled lane by lane).
-type LeafLanes<W> = <W as Simd>::X8;
-
-/// Leaves of at most 4 triangles (most of those a diffuse ray meets) are tested in 4
-/// lanes: loading half as many lanes' records paid 1.05x on Sponza's and the conference
-/// room's diffuse streams (perf/log/stream.md).
-type SmallLeafLanes<W> = <W as Simd>::X4;
 
 impl KdTree {
     /// The ray's parameter interval inside the tree's box, widened by [`PLANE_SLACK`] and
@@ -210,7 +196,7 @@ impl KdTree {
         }
         // A leaf's primitives, then the pops that find the next node.
         if n.is_leaf()
-            && let Some(answer) = self.leaf_step::<ANY_HIT, W4, false>(&n, ray, best)
+            && let Some(answer) = self.leaf_step::<ANY_HIT>(&n, ray, best)
         {
             return Some(answer);
         }
@@ -221,84 +207,51 @@ impl KdTree {
         }
     }
 
-    /// The primitives of the leaf `n` against `ray`: closest hit folded into `best`, or
-    /// with `ANY_HIT`, `Some(true)` at the first hit. `LEAF_LANES` tests the triangles
-    /// in lanes, as the lane walks (traverse_lanes.rs) do, at the 4- and 8-lane backends
-    /// of the walk's `W`; the scalar step one by one.
+    /// The primitives of the leaf `n` against `ray`, one test each: closest hit folded
+    /// into `best`, or with `ANY_HIT`, `Some(true)` at the first hit. The lane walks
+    /// test the triangles in lanes instead (`traverse_lanes::leaf_lanes_step`).
     #[inline(always)]
-    pub(super) fn leaf_step<const ANY_HIT: bool, W: Simd, const LEAF_LANES: bool>(
+    pub(super) fn leaf_step<const ANY_HIT: bool>(
         &self,
         n: &super::node::KdNode,
         ray: &Ray,
         best: &mut Hit,
     ) -> Option<bool> {
+        let prims = self.visit_leaf(n)?;
+        self.one_by_one::<ANY_HIT>(prims, ray, best).then_some(true)
+    }
+
+    /// The slots of the leaf `n`, counted as a visit; `None` when it is empty.
+    #[inline(always)]
+    pub(super) fn visit_leaf(&self, n: &super::node::KdNode) -> Option<&[u32]> {
         let prims = self.leaf_prims(n);
-        let count = prims.len() as u32;
         bump(|c| c.leaf_visits += 1);
-        if count == 0 {
-            return None;
-        }
-        // The lane walks test a leaf's triangles in lanes (perf/log/stream.md), for
-        // closest and any hits; the scalar path keeps one test per primitive. In a scene
-        // of triangles alone no leaf needs its slots checked (a loop whose exit, at the
-        // leaf's size, the branch predictor misses: 1.03x on the bunny).
-        let tris_only = self.prims.triangles_only();
-        let all_tris = inl(
-            #[inline(always)]
-            |g: &[u32]| tris_only || g.iter().all(|&p| p < self.prims.sphere_base),
-        );
-        // The `stats` feature's count of primitive tests.
-        let count_tests = inl(
-            #[inline(always)]
-            |g: &[u32]| bump(|c| c.prim_tests += g.len() as u64),
-        );
-        let one_by_one = inl(
-            #[inline(always)]
-            |g: &[u32], best: &mut Hit| {
-                if ANY_HIT {
-                    // A loop, not `Iterator::any`, which LLVM may keep out of line (see
-                    // `crate::simd::inl`).
-                    for &p in g {
-                        bump(|c| c.prim_tests += 1);
-                        if self.prims.intersect_prim(p, ray, ray.t_max).is_some() {
-                            return true;
-                        }
-                    }
-                } else {
-                    count_tests(g);
-                    self.prims.intersect_leaf(g, ray, best);
-                }
-                false
-            },
-        );
-        if LEAF_LANES
-            && (LEAF_LANES_MIN..=SmallLeafLanes::<W>::LANES as u32).contains(&count)
-            && all_tris(prims)
-        {
-            count_tests(prims);
-            if self
-                .prims
-                .tris_lanes::<SmallLeafLanes<W>, ANY_HIT>(prims, ray, best)
-            {
-                return Some(true);
-            }
-        } else if LEAF_LANES && count >= LEAF_LANES_MIN {
-            for group in prims.chunks(LeafLanes::<W>::LANES) {
-                let hit = if group.len() as u32 >= LEAF_LANES_MIN && all_tris(group) {
-                    count_tests(group);
-                    self.prims
-                        .tris_lanes::<LeafLanes<W>, ANY_HIT>(group, ray, best)
-                } else {
-                    one_by_one(group, best)
-                };
-                if hit {
-                    return Some(true);
+        (!prims.is_empty()).then_some(prims)
+    }
+
+    /// The primitives in `slots` against `ray`, one test each: closest hit folded into
+    /// `best`, or with `ANY_HIT`, true at the first hit.
+    #[inline(always)]
+    pub(super) fn one_by_one<const ANY_HIT: bool>(
+        &self,
+        slots: &[u32],
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
+        if ANY_HIT {
+            // A loop, not `Iterator::any`, which LLVM may keep out of line (see
+            // `crate::simd::inl`).
+            for &p in slots {
+                bump(|c| c.prim_tests += 1);
+                if self.prims.intersect_prim(p, ray, ray.t_max).is_some() {
+                    return true;
                 }
             }
-        } else if one_by_one(prims, best) {
-            return Some(true);
+        } else {
+            bump(|c| c.prim_tests += slots.len() as u64);
+            self.prims.intersect_leaf(slots, ray, best);
         }
-        None
+        false
     }
 }
 

@@ -5,7 +5,8 @@
 //! loads each lane's node ([`Uint::gather_pairs`]: `W` independent loads in flight, so
 //! the cache misses of `W` rays overlap), decides the inner-node step of every lane in
 //! SIMD without a branch, and ends the steps at leaves and empty children lane by lane
-//! with the scalar code (`KdTree::leaf_step`, `Walk::pop`). A lane whose walk ends takes the
+//! with the scalar code (`Walk::pop`) and the leaves' triangles in lanes
+//! (`KdTree::leaf_lanes_step`). A lane whose walk ends takes the
 //! next ray of the stream, whose interval in the tree's box and per-axis values were
 //! computed with those of its `W - 1` neighbours in the stream (`KdTree::start_block`):
 //! one set of vector divisions instead of three scalar ones on each ray's critical path.
@@ -40,6 +41,20 @@ use crate::simd::{
     AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, array_fn, inl, max_abs,
     prefetch,
 };
+
+/// The lane walks (stream queries) test groups of at least this many triangles of a leaf in lanes
+/// (one triangle alone is faster scalar: perf/log/stream.md).
+const LEAF_LANES_MIN: u32 = 2;
+
+/// The width of those groups: 8 lanes (16 measured slower, perf/log/stream.md: a diffuse
+/// ray's leaves hold few triangles), in the walk's instruction set ([`Simd::X8`]: the
+/// portable 8 lanes are two SSE registers filled lane by lane).
+type LeafLanes<W> = <W as Simd>::X8;
+
+/// Leaves of at most 4 triangles (most of those a diffuse ray meets) are tested in 4
+/// lanes: loading half as many lanes' records paid 1.05x on Sponza's and the conference
+/// room's diffuse streams (perf/log/stream.md).
+type SmallLeafLanes<W> = <W as Simd>::X4;
 
 /// The lanes' walk state as arrays, one entry per lane: what the SIMD step loads and
 /// stores, and what the lane-by-lane code reads and writes between steps.
@@ -642,7 +657,7 @@ impl KdTree {
         for i in lanes_of((live_m & n.leaf).bits()) {
             let here = self.nodes[g.st.node[i] as usize];
             let ray = &rays[g.ray_of[i]];
-            if let Some(answer) = self.leaf_step::<ANY_HIT, W, true>(&here, ray, &mut g.best[i]) {
+            if let Some(answer) = self.leaf_lanes_step::<ANY_HIT, W>(&here, ray, &mut g.best[i]) {
                 done(g.ray_of[i], answer, g.best[i]);
                 self.start_lane::<W, ANY_HIT>(g, i, rays, next, done);
             } else {
@@ -669,6 +684,61 @@ impl KdTree {
             done(g.ray_of[i], false, g.best[i]);
             self.start_lane::<W, ANY_HIT>(g, i, rays, next, done);
         }
+    }
+}
+
+impl KdTree {
+    /// [`KdTree::leaf_step`] for the lane walks: the leaf's triangles tested in lanes
+    /// (perf/log/stream.md), for closest and any hits, at the 4- and 8-lane backends of
+    /// the walk's `W`; a leaf of one triangle, and groups holding other primitives, one
+    /// by one.
+    #[inline(always)]
+    fn leaf_lanes_step<const ANY_HIT: bool, W: Simd>(
+        &self,
+        n: &super::node::KdNode,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> Option<bool> {
+        let prims = self.visit_leaf(n)?;
+        let count = prims.len() as u32;
+        // In a scene of triangles alone no leaf needs its slots checked (a loop whose
+        // exit, at the leaf's size, the branch predictor misses: 1.03x on the bunny).
+        let tris_only = self.prims.triangles_only();
+        let all_tris = inl(
+            #[inline(always)]
+            |g: &[u32]| tris_only || g.iter().all(|&p| p < self.prims.sphere_base),
+        );
+        // The `stats` feature's count of primitive tests.
+        let count_tests = inl(
+            #[inline(always)]
+            |g: &[u32]| bump(|c| c.prim_tests += g.len() as u64),
+        );
+        if (LEAF_LANES_MIN..=SmallLeafLanes::<W>::LANES as u32).contains(&count) && all_tris(prims)
+        {
+            count_tests(prims);
+            if self
+                .prims
+                .tris_lanes::<SmallLeafLanes<W>, ANY_HIT>(prims, ray, best)
+            {
+                return Some(true);
+            }
+        } else if count >= LEAF_LANES_MIN {
+            for group in prims.chunks(LeafLanes::<W>::LANES) {
+                let hit = if group.len() as u32 >= LEAF_LANES_MIN && all_tris(group) {
+                    count_tests(group);
+                    self.prims
+                        .tris_lanes::<LeafLanes<W>, ANY_HIT>(group, ray, best)
+                } else {
+                    self.one_by_one::<ANY_HIT>(group, ray, best)
+                };
+                if hit {
+                    return Some(true);
+                }
+            }
+        } else if self.one_by_one::<ANY_HIT>(prims, ray, best) {
+            return Some(true);
+        }
+        None
     }
 }
 
