@@ -9,6 +9,7 @@
 //! working is the job's serial part, the figure Amdahl's law extrapolates from
 //! ([`Occupancy::amdahl`]). A meter that is off costs a branch per hand-off.
 
+use rayon::iter::{IndexedParallelIterator, ParallelIterator};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -150,6 +151,17 @@ impl<'a> Meter<'a> {
     #[inline]
     pub fn working(self) -> Working<'a> {
         Working(self.0.inspect(|o| o.change(true)))
+    }
+
+    /// `iter` as a flat pass of the build: jobs of exactly [`JOB`] items (the last one
+    /// shorter), each marked working while it runs, what follows `jobs` in the chain
+    /// included. Call it inside a [`Meter::hand_off`].
+    #[inline]
+    pub fn jobs<I: IndexedParallelIterator>(
+        self,
+        iter: I,
+    ) -> impl IndexedParallelIterator<Item = I::Item> + use<'a, I> {
+        (iter.with_min_len(JOB).with_max_len(JOB)).map_init(move || self.working(), |_, x| x)
     }
 
     /// Runs `f`, which hands work to the pool, with the calling thread not counted:

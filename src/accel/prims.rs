@@ -7,7 +7,7 @@
 //! triangles, for the kd-tree's lane walks, is [`Prims::intersect_tris_lanes`] in
 //! [`crate::accel::triaccel_leaf`].
 
-use crate::accel::occupancy::{JOB, Meter};
+use crate::accel::occupancy::Meter;
 use crate::accel::triaccel::TriAccel;
 use crate::geom::{Aabb, Geometry, Plane, Sphere};
 use crate::ray::{Hit, Ray};
@@ -63,15 +63,11 @@ impl Prims {
             |(id, &[a, b, c]): (usize, &[Vec3; 3])| TriAccel::new(a, b, c).with_id(id as u32);
         let (corners, tris): (Vec<[Vec3; 3]>, Vec<TriAccel>) = if parallel {
             meter.hand_off(|| {
-                let corners: Vec<_> = (ids.into_par_iter())
-                    .with_min_len(JOB)
-                    .with_max_len(JOB)
-                    .map_init(|| meter.working(), |_, i| g.triangle(i))
+                let corners: Vec<_> = (meter.jobs(ids.into_par_iter()))
+                    .map(|i| g.triangle(i))
                     .collect();
-                let tris = (corners.par_iter().enumerate())
-                    .with_min_len(JOB)
-                    .with_max_len(JOB)
-                    .map_init(|| meter.working(), |_, c| record(c))
+                let tris = (meter.jobs(corners.par_iter().enumerate()))
+                    .map(record)
                     .collect();
                 (corners, tris)
             })
@@ -100,15 +96,11 @@ impl Prims {
         debug_assert_eq!(order.len(), self.tris.len());
         if parallel {
             meter.hand_off(|| {
-                let tris = (order.par_iter())
-                    .with_min_len(JOB)
-                    .with_max_len(JOB)
-                    .map_init(|| meter.working(), |_, &s| self.tris[s as usize])
+                let tris = (meter.jobs(order.par_iter()))
+                    .map(|&s| self.tris[s as usize])
                     .collect();
-                let corners = (order.par_iter())
-                    .with_min_len(JOB)
-                    .with_max_len(JOB)
-                    .map_init(|| meter.working(), |_, &s| self.corners[s as usize])
+                let corners = (meter.jobs(order.par_iter()))
+                    .map(|&s| self.corners[s as usize])
                     .collect();
                 (self.tris, self.corners) = (tris, corners);
             })

@@ -16,7 +16,7 @@
 //! the split word), so traversal reads a leaf's primitives without the table lookup.
 //! The nodes of a built [`super::KdTree`] are in that form.
 
-use crate::accel::occupancy::{JOB, Meter};
+use crate::accel::occupancy::Meter;
 use crate::simd::{Mask, Simd, Uint, Vu, inl};
 
 /// Axis value that marks a leaf.
@@ -285,23 +285,17 @@ impl AlignedNodes {
         use rayon::prelude::*;
         let pad = KdNode::leaf(0);
         let blocks = meter.hand_off(|| {
-            (0..nodes.len().div_ceil(8))
-                .into_par_iter()
-                .with_min_len(JOB / 8)
-                .with_max_len(JOB / 8)
-                .map_init(
-                    || meter.working(),
-                    |_, b| {
-                        NodeBlock(std::array::from_fn(|k| {
-                            let i = 8 * b + k;
-                            if i < nodes.len() {
-                                marked(nodes, i)
-                            } else {
-                                pad
-                            }
-                        }))
-                    },
-                )
+            (meter.jobs((0..nodes.len().div_ceil(8)).into_par_iter()))
+                .map(|b| {
+                    NodeBlock(std::array::from_fn(|k| {
+                        let i = 8 * b + k;
+                        if i < nodes.len() {
+                            marked(nodes, i)
+                        } else {
+                            pad
+                        }
+                    }))
+                })
                 .collect()
         });
         AlignedNodes {

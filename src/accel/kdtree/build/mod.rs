@@ -454,11 +454,8 @@ fn leaf_order(prim_indices: &[u32], tri_count: u32, parallel: bool, meter: Meter
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
     const CHUNK: usize = 1 << 16;
     meter.hand_off(|| {
-        let first: Vec<AtomicU32> = (0..tri_count)
-            .into_par_iter()
-            .with_min_len(JOB)
-            .with_max_len(JOB)
-            .map_init(|| meter.working(), |_, _| AtomicU32::new(u32::MAX))
+        let first: Vec<AtomicU32> = (meter.jobs((0..tri_count).into_par_iter()))
+            .map(|_| AtomicU32::new(u32::MAX))
             .collect();
         prim_indices
             .par_chunks(CHUNK)
@@ -506,23 +503,13 @@ fn inverse(order: &[u32], parallel: bool, meter: Meter) -> Vec<u32> {
     }
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
     meter.hand_off(|| {
-        let slot_of: Vec<AtomicU32> = (0..order.len())
-            .into_par_iter()
-            .with_min_len(JOB)
-            .with_max_len(JOB)
-            .map_init(|| meter.working(), |_, _| AtomicU32::new(0))
+        let slot_of: Vec<AtomicU32> = (meter.jobs((0..order.len()).into_par_iter()))
+            .map(|_| AtomicU32::new(0))
             .collect();
-        (order.par_iter().enumerate())
-            .with_min_len(JOB)
-            .with_max_len(JOB)
-            .for_each_init(
-                || meter.working(),
-                |_, (s, &p)| slot_of[p as usize].store(s as u32, Relaxed),
-            );
-        (slot_of.into_par_iter())
-            .with_min_len(JOB)
-            .with_max_len(JOB)
-            .map_init(|| meter.working(), |_, s| s.into_inner())
+        (meter.jobs(order.par_iter().enumerate()))
+            .for_each(|(s, &p)| slot_of[p as usize].store(s as u32, Relaxed));
+        (meter.jobs(slot_of.into_par_iter()))
+            .map(AtomicU32::into_inner)
             .collect()
     })
 }
@@ -552,13 +539,8 @@ fn leaf_lines(
     };
     if parallel {
         meter.hand_off(|| {
-            (leaves.par_iter().step_by(8))
-                .with_min_len(JOB)
-                .with_max_len(JOB)
-                .map_init(
-                    || (meter.working(), Vec::new()),
-                    |(_, lines), leaf| count(lines, leaf),
-                )
+            (meter.jobs(leaves.par_iter().step_by(8)))
+                .map_init(Vec::new, |lines, leaf| count(lines, leaf))
                 .sum()
         })
     } else {

@@ -9,7 +9,7 @@
 //! Where each node lands does not change: a piece goes where the copy would have put it.
 
 use super::super::node::{KdNode, MAX_CHILD, MAX_INDEX, ranged, with_leaf_ranges};
-use crate::accel::occupancy::{JOB, Meter};
+use crate::accel::occupancy::Meter;
 use rayon::prelude::*;
 
 /// A run of consecutive entries that this `Out` wrote itself, starting at index
@@ -76,9 +76,17 @@ impl<T> Runs<T> {
         &mut run.items[i - run.start]
     }
 
-    /// Each run's start and entries.
-    fn iter(&self) -> impl Iterator<Item = (usize, &[T])> {
-        self.runs.iter().map(|r| (r.start, &r.items[..]))
+    /// Each run as a piece going to `offset` plus its start, its first `skip` entries
+    /// (at most one, a subtree's root) left out.
+    fn pieces<'a>(&'a self, bases: Bases, offset: usize, skip: usize, out: &mut Vec<Piece<'a, T>>) {
+        for r in &self.runs {
+            let skip = if r.start == 0 { skip } else { 0 };
+            out.push(Piece {
+                bases,
+                dst: offset + r.start + skip,
+                items: &r.items[skip..],
+            });
+        }
     }
 
     /// The entries of an `Out` that has no gaps (one run at most).
@@ -183,57 +191,26 @@ impl Out {
                 self.prim_indices.whole(),
             );
         }
-        let mut pieces = Vec::new();
+        let mut pieces = Pieces::default();
         self.pieces(Bases::default(), false, &mut pieces);
-        let leaf = |p: &Piece, &[first, count]: &[u32; 2]| {
-            [(first as usize + p.bases.index) as u32, count]
-        };
-        let leaves = gather(&pieces, |p| p.leaves, |p| p.leaf_dst, leaf, parallel, meter);
-        let node = |p: &Piece, n: &KdNode| ranged(relocate(n, p.bases.node, p.bases.leaf), &leaves);
-        let index = |_: &Piece, &i: &u32| i;
-        (
-            gather(&pieces, |p| p.nodes, |p| p.node_dst, node, parallel, meter),
-            leaves,
-            gather(
-                &pieces,
-                |p| p.indices,
-                |p| p.index_dst,
-                index,
-                parallel,
-                meter,
-            ),
-        )
+        let leaf =
+            |b: &Bases, &[first, count]: &[u32; 2]| [(first as usize + b.index) as u32, count];
+        let leaves = gather(pieces.leaves, leaf, parallel, meter);
+        let node = |b: &Bases, n: &KdNode| ranged(relocate(n, b.node, b.leaf), &leaves);
+        let nodes = gather(pieces.nodes, node, parallel, meter);
+        let indices = gather(pieces.indices, |_, &i| i, parallel, meter);
+        (nodes, leaves, indices)
     }
 
     /// Lists this `Out`'s runs and, recursively, those of the subtrees built apart,
     /// with where each goes; `skip_root` leaves out node 0 (a subtree's root, which is
     /// in its parent's slot).
-    fn pieces<'a>(&'a self, bases: Bases, skip_root: bool, out: &mut Vec<Piece<'a>>) {
-        for (start, items) in self.nodes.iter() {
-            let skip = usize::from(skip_root && start == 0);
-            out.push(Piece {
-                bases,
-                nodes: &items[skip..],
-                node_dst: bases.node + start + skip,
-                ..Piece::default()
-            });
-        }
-        for (start, items) in self.leaves.iter() {
-            out.push(Piece {
-                bases,
-                leaves: items,
-                leaf_dst: bases.leaf + start,
-                ..Piece::default()
-            });
-        }
-        for (start, items) in self.prim_indices.iter() {
-            out.push(Piece {
-                bases,
-                indices: items,
-                index_dst: bases.index + start,
-                ..Piece::default()
-            });
-        }
+    fn pieces<'a>(&'a self, bases: Bases, skip_root: bool, out: &mut Pieces<'a>) {
+        self.nodes
+            .pieces(bases, bases.node, usize::from(skip_root), &mut out.nodes);
+        self.leaves.pieces(bases, bases.leaf, 0, &mut out.leaves);
+        self.prim_indices
+            .pieces(bases, bases.index, 0, &mut out.indices);
         for a in &self.apart {
             let inner = Bases {
                 node: bases.node + a.node_base,
@@ -253,40 +230,42 @@ struct Bases {
     index: usize,
 }
 
-/// One run to copy into the final arrays (only one of its three slices is non-empty).
-#[derive(Default)]
-struct Piece<'a> {
+/// One run to copy into a final array: its entries, where they go and the bases its
+/// numbers move by.
+struct Piece<'a, T> {
     bases: Bases,
-    nodes: &'a [KdNode],
-    node_dst: usize,
-    leaves: &'a [[u32; 2]],
-    leaf_dst: usize,
-    indices: &'a [u32],
-    index_dst: usize,
+    dst: usize,
+    items: &'a [T],
 }
 
-/// One of the final arrays: every piece's `slice` mapped by `map` and written at its
-/// `dst`. The pieces tile the array.
-fn gather<'a, T: Copy + Send + Sync + bytemuck::Zeroable + 'a>(
-    pieces: &[Piece<'a>],
-    slice: impl Fn(&Piece<'a>) -> &'a [T] + Sync,
-    dst: impl Fn(&Piece<'a>) -> usize,
-    map: impl Fn(&Piece<'a>, &T) -> T + Sync,
+/// The pieces of the three arrays.
+#[derive(Default)]
+struct Pieces<'a> {
+    nodes: Vec<Piece<'a, KdNode>>,
+    leaves: Vec<Piece<'a, [u32; 2]>>,
+    indices: Vec<Piece<'a, u32>>,
+}
+
+/// One of the final arrays: every piece's entries mapped by `map` with the piece's
+/// bases and written at its `dst`. The pieces tile the array.
+fn gather<T: Copy + Send + Sync + bytemuck::Zeroable>(
+    mut pieces: Vec<Piece<T>>,
+    map: impl Fn(&Bases, &T) -> T + Sync,
     parallel: bool,
     meter: Meter,
 ) -> Vec<T> {
-    let mut jobs: Vec<(usize, &Piece)> = (pieces.iter())
-        .filter(|p| !slice(p).is_empty())
-        .map(|p| (dst(p), p))
-        .collect();
-    jobs.sort_unstable_by_key(|j| j.0);
+    pieces.retain(|p| !p.items.is_empty());
+    pieces.sort_unstable_by_key(|p| p.dst);
     let mut at = 0;
-    for &(d, p) in &jobs {
-        assert_eq!(d, at, "kd-tree: the pieces of a build must tile its arrays");
-        at += slice(p).len();
+    for p in &pieces {
+        assert_eq!(
+            p.dst, at,
+            "kd-tree: the pieces of a build must tile its arrays"
+        );
+        at += p.items.len();
     }
-    let parts: Vec<(&Piece, &[T])> = jobs.iter().map(|&(_, p)| (p, slice(p))).collect();
-    concat(&parts, |p, x| map(p, x), T::zeroed(), parallel, meter)
+    let parts: Vec<(Bases, &[T])> = pieces.iter().map(|p| (p.bases, p.items)).collect();
+    concat(&parts, map, T::zeroed(), parallel, meter)
 }
 
 /// The `parts`' slices one after another, each element mapped by `map` with its part's
@@ -309,10 +288,8 @@ pub(super) fn concat<K: Sync, S: Sync, T: Copy + Send + Sync>(
         return all;
     }
     meter.hand_off(|| {
-        (rayon::iter::repeat_n(fill, len))
-            .with_min_len(JOB)
-            .with_max_len(JOB)
-            .map_init(|| meter.working(), |_, z| z)
+        meter
+            .jobs(rayon::iter::repeat_n(fill, len))
             .collect_into_vec(&mut all)
     });
     let mut rest = &mut all[..];
