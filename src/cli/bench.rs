@@ -11,15 +11,12 @@ use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::Mode;
-use raypack::accel::TILE_RAYS;
 use raypack::accel::kdtree::stats::{self, TraversalCounts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
-use raypack::ray::Ray;
-use raypack::rayset::trace::{Order, Query, checksum_set, sign_split_packets};
+use raypack::rayset::trace::{Order, Query, checksum_set, split_packets};
 use raypack::rayset::{self, Checksum, RaySet, StandardSets, standard};
 use raypack::scene::Geometry;
 use raypack::scene::catalog::BenchScene;
-use raypack::simd::{W4, W8, W16};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -200,28 +197,6 @@ fn set_named<'s>(sets: &'s StandardSets, name: &str) -> &'s RaySet {
         "primary" => &sets.primary,
         "shadow" => &sets.shadow,
         _ => &sets.diffuse,
-    }
-}
-
-/// `[split, total]`: the packets of `mode` (as the mode forms them from `set`) whose
-/// lanes disagree on a direction sign, and all of them.
-fn split_packets(set: &RaySet, mode: Mode) -> [usize; 2] {
-    let order = Order::of(set);
-    match mode {
-        Mode::Scalar | Mode::Stream => [0, set.len()],
-        Mode::Packet4 => sign_split_packets::<W4>(&set.rays, order),
-        Mode::Packet8 => sign_split_packets::<W8>(&set.rays, order),
-        Mode::Packet16 => sign_split_packets::<W16>(&set.rays, order),
-        Mode::Tile64 => {
-            let tiles = set.rays.chunks(TILE_RAYS);
-            let total = tiles.len();
-            let mixed = |tile: &[Ray]| {
-                (0..3).any(|a| {
-                    tile.iter().any(|r| r.dir[a] < 0.0) && tile.iter().any(|r| r.dir[a] > 0.0)
-                })
-            };
-            [tiles.filter(|t| mixed(t)).count(), total]
-        }
     }
 }
 
@@ -452,7 +427,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let set = set_named(&sets, name);
             let per_mode = packet_modes
                 .iter()
-                .map(|&m| (m.to_string(), split_packets(set, m)))
+                .map(|&m| (m.to_string(), split_packets(&set.rays, Order::of(set), m)))
                 .collect();
             (name.clone(), per_mode)
         })

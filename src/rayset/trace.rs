@@ -22,7 +22,7 @@ use crate::accel::Mode;
 use crate::accel::{Accel, PacketTrace, PacketWidth, RayPacket, TILE_RAYS, intersect_each};
 use crate::ray::{Hit, Ray};
 use crate::scene::camera::{block_pixel, block_shape};
-use crate::simd::{MAX_LANES, Simd, Uint, W4, W8, W16};
+use crate::simd::{MAX_LANES, Simd, Uint, by_width};
 use rayon::prelude::*;
 use std::fmt;
 
@@ -145,8 +145,29 @@ fn for_each_packet<W: PacketWidth>(
     }
 }
 
-/// `[split, total]`: the packets of `W` lanes of `rays` (as the packet modes form them)
-/// whose lanes disagree on a direction sign, and all of them.
+/// `[split, total]`: the packets of `mode` (as the mode forms them from `rays`, lying in
+/// `order`) whose lanes disagree on a direction sign, and all of them: the tiles for
+/// the tile mode, every ray for the scalar and stream modes (none split).
+pub fn split_packets(rays: &[Ray], order: Order, mode: Mode) -> [usize; 2] {
+    match mode {
+        Mode::Scalar | Mode::Stream => [0, rays.len()],
+        Mode::Packet4 | Mode::Packet8 | Mode::Packet16 => by_width!(mode.packet_size(), W => {
+            sign_split_packets::<W>(rays, order)
+        }),
+        Mode::Tile64 => {
+            let tiles = rays.chunks(TILE_RAYS);
+            let total = tiles.len();
+            let mixed = |tile: &[Ray]| {
+                (0..3).any(|a| {
+                    tile.iter().any(|r| r.dir[a] < 0.0) && tile.iter().any(|r| r.dir[a] > 0.0)
+                })
+            };
+            [tiles.filter(|t| mixed(t)).count(), total]
+        }
+    }
+}
+
+/// [`split_packets`] of the packets of `W` lanes.
 pub fn sign_split_packets<W: PacketWidth>(rays: &[Ray], order: Order) -> [usize; 2] {
     let mut counts = [0, 0];
     for_each_packet::<W>(rays, order, |p, _| {
@@ -243,9 +264,9 @@ pub fn intersect_into<A: Accel + ?Sized>(
     assert_eq!(rays.len(), out.len());
     match mode {
         Mode::Scalar => intersect_each(accel, rays, out),
-        Mode::Packet4 => intersect_packets::<A, W4>(accel, rays, order, out),
-        Mode::Packet8 => intersect_packets::<A, W8>(accel, rays, order, out),
-        Mode::Packet16 => intersect_packets::<A, W16>(accel, rays, order, out),
+        Mode::Packet4 | Mode::Packet8 | Mode::Packet16 => by_width!(mode.packet_size(), W => {
+            intersect_packets::<A, W>(accel, rays, order, out)
+        }),
         Mode::Tile64 => {
             for (tile, ht) in rays.chunks(TILE_RAYS).zip(out.chunks_mut(TILE_RAYS)) {
                 accel.intersect_tile(tile, ht);
@@ -285,9 +306,9 @@ pub fn occluded_into<A: Accel + ?Sized>(
     assert_eq!(rays.len(), out.len());
     match mode {
         Mode::Scalar => crate::accel::occluded_each(accel, rays, out),
-        Mode::Packet4 => occluded_packets::<A, W4>(accel, rays, order, out),
-        Mode::Packet8 => occluded_packets::<A, W8>(accel, rays, order, out),
-        Mode::Packet16 => occluded_packets::<A, W16>(accel, rays, order, out),
+        Mode::Packet4 | Mode::Packet8 | Mode::Packet16 => by_width!(mode.packet_size(), W => {
+            occluded_packets::<A, W>(accel, rays, order, out)
+        }),
         Mode::Tile64 => {
             for (tile, ot) in rays.chunks(TILE_RAYS).zip(out.chunks_mut(TILE_RAYS)) {
                 let bits = accel.occluded_tile(tile);
@@ -370,9 +391,11 @@ pub fn checksum_chunk<A: Accel + ?Sized>(
         (Mode::Scalar, Query::Occluded) => {
             c.hits = rays.iter().filter(|r| accel.occluded(r)).count() as u64;
         }
-        (Mode::Packet4, _) => return checksum_packets::<A, W4>(accel, rays, order, query),
-        (Mode::Packet8, _) => return checksum_packets::<A, W8>(accel, rays, order, query),
-        (Mode::Packet16, _) => return checksum_packets::<A, W16>(accel, rays, order, query),
+        (Mode::Packet4 | Mode::Packet8 | Mode::Packet16, _) => {
+            return by_width!(mode.packet_size(), W => {
+                checksum_packets::<A, W>(accel, rays, order, query)
+            });
+        }
         (Mode::Tile64, Query::Closest) => {
             let mut hits = [Hit::MISS; TILE_RAYS];
             for tile in rays.chunks(TILE_RAYS) {
@@ -446,6 +469,7 @@ mod tests {
     use crate::rayset::format::packet_pixel;
     use crate::scene::{Geometry, Sphere};
     use crate::simd::Float;
+    use crate::simd::{W4, W8, W16};
     use glam::Vec3;
 
     fn spheres_and_rays() -> (Geometry, Vec<Ray>) {

@@ -7,7 +7,7 @@ use super::counts::RayCounts;
 use crate::accel::packet::RayPacket;
 use crate::accel::{Accel, Mode, PacketTrace, PacketWidth, intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{MAX_LANES, W4, W8, W16};
+use crate::simd::{MAX_LANES, by_width};
 use glam::Vec3;
 
 /// Closest hits of at most one packet of `rays`, traced as a packet at `mode`'s width.
@@ -16,20 +16,12 @@ pub fn intersect_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> [Hit; MAX_
         let p = accel.intersect_packet(&RayPacket::<W>::from_rays(rays));
         std::array::from_fn(|i| if i < W::LANES { p.lane(i) } else { Hit::MISS })
     }
-    match mode {
-        Mode::Packet8 => at::<W8>(accel, rays),
-        Mode::Packet16 => at::<W16>(accel, rays),
-        _ => at::<W4>(accel, rays),
-    }
+    by_width!(mode.packet_size(), W => at::<W>(accel, rays))
 }
 
 /// Occlusion bits of at most one packet of `rays`, traced as a packet at `mode`'s width.
 pub fn occluded_rays(accel: &dyn Accel, mode: Mode, rays: &[Ray]) -> u32 {
-    match mode {
-        Mode::Packet8 => accel.occluded_packet(&RayPacket::<W8>::from_rays(rays)),
-        Mode::Packet16 => accel.occluded_packet(&RayPacket::<W16>::from_rays(rays)),
-        _ => accel.occluded_packet(&RayPacket::<W4>::from_rays(rays)),
-    }
+    by_width!(mode.packet_size(), W => accel.occluded_packet(&RayPacket::<W>::from_rays(rays)))
 }
 
 /// Shadow rays of one hit point, queued in sample order and tested a packet width at a

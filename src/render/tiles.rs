@@ -21,7 +21,7 @@ use crate::accel::Accel;
 use crate::accel::Mode;
 use crate::scene::camera::block_pixel;
 use crate::scene::{AntiAlias, CameraFrame, Scene};
-use crate::simd::{MAX_LANES, Simd, W4, W8, W16};
+use crate::simd::{MAX_LANES, Simd, by_width};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -111,10 +111,8 @@ pub fn block_offsets(mode: Mode) -> Vec<(u32, u32)> {
         (0..W::LANES).map(block_pixel::<W>).collect()
     }
     match mode {
-        Mode::Scalar | Mode::Packet4 => of::<W4>(),
-        Mode::Packet8 => of::<W8>(),
-        Mode::Packet16 => of::<W16>(),
         Mode::Tile64 | Mode::Stream => block_offsets(mode.group_mode()),
+        _ => by_width!(mode.packet_size(), W => of::<W>()),
     }
 }
 
@@ -135,12 +133,12 @@ pub fn shade_block(
             Some((x, y)) => centre_sample(shader, frame, seed, x, y, counts),
             None => (Vec3::ZERO, HitSignature::MISS),
         }),
-        Mode::Packet4 => shade_block_packet::<W4>(shader, frame, seed, pixels, counts),
-        Mode::Packet8 => shade_block_packet::<W8>(shader, frame, seed, pixels, counts),
-        Mode::Packet16 => shade_block_packet::<W16>(shader, frame, seed, pixels, counts),
         Mode::Tile64 | Mode::Stream => {
             shade_block(mode.group_mode(), shader, frame, seed, pixels, counts)
         }
+        _ => by_width!(mode.packet_size(), W => {
+            shade_block_packet::<W>(shader, frame, seed, pixels, counts)
+        }),
     }
 }
 
@@ -209,11 +207,10 @@ impl TileContext<'_> {
         let (shader, frame, seed) = (&self.shader, &self.frame, self.seed);
         match self.mode.group_mode() {
             Mode::Scalar | Mode::Stream => supersample(shader, frame, seed, p, n, first, counts),
-            Mode::Packet4 => supersample_packet::<W4>(shader, frame, seed, p, n, first, counts),
-            Mode::Packet8 => supersample_packet::<W8>(shader, frame, seed, p, n, first, counts),
-            Mode::Packet16 | Mode::Tile64 => {
-                supersample_packet::<W16>(shader, frame, seed, p, n, first, counts)
-            }
+            // A group mode is a packet mode.
+            m => by_width!(m.packet_size(), W => {
+                supersample_packet::<W>(shader, frame, seed, p, n, first, counts)
+            }),
         }
     }
 

@@ -1,6 +1,8 @@
 //! The instruction set the kernels run: detected once, forced lower by `RAYPACK_ISA`,
-//! and for tests per thread ([`Isa::scope`]). [`dispatch`] is the one place a
-//! portable width becomes the backend of the instruction set in use.
+//! and for tests per thread ([`Isa::scope`]). The two places a lane count becomes a
+//! type: [`by_width`] picks the portable width of a count known at run time (a mode's
+//! packet, the native width), and [`dispatch`] the backend of the instruction set in
+//! use behind a portable width.
 
 use std::cell::Cell;
 use std::sync::OnceLock;
@@ -197,6 +199,43 @@ pub(crate) fn scalar_entry<R>(f: impl FnOnce() -> R) -> R {
         Isa::Sse => W4::enter(f),
     }
 }
+
+/// `$body` with the type `$w` the portable width ([`super::W4`], [`super::W8`] or
+/// [`super::W16`]) of `$lanes` lanes, a count known at run time: `by_width!(lanes, W =>
+/// f::<W>(x))`. A count of 16 is `W16`, 8 is `W8`, any other `W4` (a mode's packet
+/// size is 1 in scalar mode, whose blocks and batches are 4 wide). `$w in [8, 16]`
+/// takes 8 for every count but 16 (a tile's groups: 4 lanes is no tile width).
+macro_rules! by_width {
+    ($lanes:expr, $w:ident => $body:expr) => {
+        match $lanes {
+            16 => {
+                type $w = $crate::simd::W16;
+                $body
+            }
+            8 => {
+                type $w = $crate::simd::W8;
+                $body
+            }
+            _ => {
+                type $w = $crate::simd::W4;
+                $body
+            }
+        }
+    };
+    ($lanes:expr, $w:ident in [8, 16] => $body:expr) => {
+        match $lanes {
+            16 => {
+                type $w = $crate::simd::W16;
+                $body
+            }
+            _ => {
+                type $w = $crate::simd::W8;
+                $body
+            }
+        }
+    };
+}
+pub(crate) use by_width;
 
 /// `$recv.$method::<B, ..>(args)` with `B` the backend of `$lanes` lanes (4, 8 or 16)
 /// for the instruction set in use, entered through [`super::Simd::enter`]: the one

@@ -16,6 +16,10 @@
 //! order, no fused multiply-add (one rounding on some CPUs and two on others would make
 //! the answers depend on the machine), true division and square root.
 //!
+//! `f32` is the one-lane [`Float`] (`bool` masks, `u32` words): the kd-tree's per-ray
+//! set-up is written once against [`Float`] and serves the scalar walk and the SIMD
+//! walks alike, and a test holds its every operation to each backend's bits.
+//!
 //! A lane mask is its own type ([`VBool`], Embree's `vbool<N>`), never the float
 //! vector, so a mask cannot be passed where a value belongs; [`LaneBits`] holds one bit
 //! per lane of the widest packet.
@@ -49,6 +53,7 @@ mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
 mod isa;
+mod one;
 mod portable;
 
 #[cfg(target_arch = "x86_64")]
@@ -56,7 +61,7 @@ pub(crate) use avx2::{Avx2x4, Avx2x8, Avx2x16};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::{Avx512x4, Avx512x8, Avx512x16};
 pub use isa::{Isa, IsaError};
-pub(crate) use isa::{dispatch, scalar_entry};
+pub(crate) use isa::{by_width, dispatch, scalar_entry};
 pub use portable::{W4, W8, W16};
 /// Other targets have the portable backends only ([`Isa::supported`] is false for the
 /// others there).

@@ -8,6 +8,18 @@
 //! leaves first name them (the indices then name those slots; hits still report ids).
 //! Planes are not in the tree; traversal tests them beside it.
 //!
+//! Three kinds of walk, each written once:
+//! - the scalar walk ([`traverse`], the oracle): one ray, `KdTree::step` per node;
+//! - the group walk ([`traverse_packet`]): SIMD packets that decide together, one
+//!   group for a packet, several sharing one stack for a tile ([`traverse_tile`]);
+//! - the lane walk ([`traverse_lanes`]): one ray per SIMD lane, each on its own walk,
+//!   for streams ([`traverse_stream`]).
+//!
+//! All three start from one set-up (`traverse::Bands`, the plane bands, and
+//! `traverse::clip`, the box clip), written against [`crate::simd::Float`] for one ray
+//! or one per lane, and the SIMD walks hand the same rays to the scalar walk: those
+//! with a zero direction component, or one so small that a node step may overflow.
+//!
 //! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and
 //! has exactly one parent, depth never exceeds [`build::MAX_DEPTH`], the leaves' ranges
 //! are exactly those of `leaves`, every leaf range lies inside `prim_indices`, every

@@ -20,7 +20,8 @@
 //!   is then one number per ray, computed once. A wider margin only visits more cells,
 //!   never fewer.
 //! - A node step computes the band's two ends in `t` as `split * inv + off`, the
-//!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`RayAxes`): a
+//!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`Bands`, the
+//!   one set-up of every walk, as `clip` is the one box clip): a
 //!   multiplication and an addition between the node's load and its decision. Its two
 //!   roundings stay within a quarter of the slack. The scalar walk computes it so on
 //!   every CPU; the packet, tile and lane walks fuse it where the instruction set has
@@ -39,11 +40,12 @@
 use super::KdTree;
 use super::build::MAX_DEPTH;
 use super::stats::bump;
+use crate::accel::tile_lanes;
 use crate::accel::triaccel::{max_abs, max_gt, min_lt};
 use crate::accel::{Accel, HitPacket, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
-use crate::simd::{LaneBits, W4, W8, W16, scalar_entry};
+use crate::simd::{self, Float, LaneBits, W4, W8, W16, array_fn, by_width, scalar_entry};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -61,13 +63,6 @@ impl KdTree {
     #[inline(always)]
     pub fn clip_ray(&self, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
         clip_to_box(&self.bounds, ray, inv_dir)
-    }
-
-    /// `box_coord_max` of the tree's box on every axis: no split lies farther from the
-    /// origin, so it stands in for the split position in the plane margin.
-    #[inline(always)]
-    pub(super) fn coord_max(&self) -> Vec3 {
-        Vec3::splat(box_coord_max(&self.bounds))
     }
 
     /// Closest hit among the tree's primitives (planes excluded), folded into `best`;
@@ -89,11 +84,23 @@ impl KdTree {
     /// (or is not usable), and then there is nothing to walk.
     #[inline(always)]
     pub(super) fn start_walk(&self, ray: &Ray, walk: &mut Walk) -> bool {
-        let inv_dir = Vec3::ONE / ray.dir;
-        let Some((t_near, t_far)) = self.clip_ray(ray, inv_dir) else {
+        if !ray.is_usable() {
             return false;
-        };
-        walk.axes = RayAxes::new(ray, inv_dir, self.coord_max());
+        }
+        let inv_dir = Vec3::ONE / ray.dir;
+        let (org, dir, inv) = (ray.org.to_array(), ray.dir.to_array(), inv_dir.to_array());
+        let bands = Bands::new(&org, &inv, box_coord_max(&self.bounds));
+        let (reach, t_near, t_far) = clip(
+            &self.bounds,
+            [&org, &dir, &inv],
+            &bands,
+            (ray.t_min, ray.t_max),
+            true,
+        );
+        if !reach {
+            return false;
+        }
+        walk.axes = RayAxes::new(&org, &dir, &inv, &bands);
         walk.stack.clear();
         walk.node = 0;
         walk.t_near = t_near;
@@ -130,7 +137,7 @@ impl KdTree {
             let o = axes.org[axis];
             // Within `margin` of the plane, a triangle test can round a ray onto
             // either side of it.
-            let margin = axes.margin[axis];
+            let margin = axes.margin;
             if axes.zero[axis] {
                 let (left, right) = (empty & 1 == 0, empty & 2 == 0);
                 if o + margin < n.split {
@@ -346,7 +353,7 @@ impl Walk {
             axes: RayAxes {
                 org: [0.0; 4],
                 inv: [0.0; 4],
-                margin: [0.0; 4],
+                margin: 0.0,
                 lo_off: [0.0; 4],
                 hi_off: [0.0; 4],
                 negative: [0; 4],
@@ -360,17 +367,14 @@ impl Walk {
     }
 }
 
-/// A ray's per-axis quantities, computed once per ray and indexed by a node's axis
-/// (`axis & 3`, so the index needs no bounds check; the fourth entry is never read).
+/// A ray's per-axis quantities for the scalar walk, indexed by a node's axis (`axis &
+/// 3`, so the index needs no bounds check; the fourth entry is never read).
 pub(super) struct RayAxes {
     pub(super) org: [f32; 4],
     pub(super) inv: [f32; 4],
-    /// Half-width of the band around a split plane where the ray counts as on both
-    /// sides: `(coord_max[axis] + max_abs(org)) * PLANE_SLACK`.
-    margin: [f32; 4],
-    /// The band's ends in `t` at a plane `split` are `split * inv + lo_off` and
-    /// `split * inv + hi_off`: `-(org * inv) - slack` and `+ slack`, the
-    /// slack being `margin / |d|`.
+    /// [`Bands::margin`].
+    margin: f32,
+    /// [`Bands::lo_off`] and [`Bands::hi_off`].
     pub(super) lo_off: [f32; 4],
     pub(super) hi_off: [f32; 4],
     /// 1 where the direction is negative (near is the right child), else 0.
@@ -381,58 +385,128 @@ pub(super) struct RayAxes {
 
 impl RayAxes {
     #[inline(always)]
-    fn new(ray: &Ray, inv_dir: Vec3, coord_max: Vec3) -> RayAxes {
-        let four = |v: Vec3| [v.x, v.y, v.z, 0.0];
-        let d = four(ray.dir);
-        let margin = (coord_max + Vec3::splat(max_abs(ray.org))) * PLANE_SLACK;
+    fn new(org: &[f32; 3], dir: &[f32; 3], inv: &[f32; 3], bands: &Bands<f32>) -> RayAxes {
+        let four = |v: &[f32; 3]| [v[0], v[1], v[2], 0.0];
         RayAxes {
-            org: four(ray.org),
-            inv: four(inv_dir),
-            margin: four(margin),
-            lo_off: four(-(ray.org * inv_dir) - margin * inv_dir.abs()),
-            hi_off: four(-(ray.org * inv_dir) + margin * inv_dir.abs()),
-            negative: d.map(|c| (c < 0.0) as u32),
-            zero: d.map(|c| c == 0.0),
+            org: four(org),
+            inv: four(inv),
+            margin: bands.margin,
+            lo_off: four(&bands.lo_off),
+            hi_off: four(&bands.hi_off),
+            negative: four(dir).map(|c| (c < 0.0) as u32),
+            zero: four(dir).map(|c| c == 0.0),
         }
     }
 }
 
-/// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`].
-/// A ray with a NaN or infinite origin or direction component, a zero direction, or
-/// `!(t_min <= t_max)` gets `None`: it misses every primitive anyway (each test fails on
-/// its NaN or infinite `t`), and must not walk the whole tree to find that out.
+/// A ray's plane bands, set up once per ray by this one function for every walk: for
+/// one ray (`F = f32`, the scalar walk) or one per lane (the packet, tile and lane
+/// walks), so all start from the same bits.
+///
+/// A triangle test can round a ray onto either side of a plane within `margin` of it;
+/// `margin` grows with the largest coordinate a split or the origin has (`reach`), on
+/// every axis (module docs). In `t` that band is `slack` wide on each side of the
+/// split distance, and its ends at a plane `split` are `split * inv + lo_off` and
+/// `split * inv + hi_off`: a multiplication and an addition per node step.
+#[derive(Clone, Copy)]
+pub(super) struct Bands<F> {
+    /// `coord_max + |org|max`.
+    pub(super) reach: F,
+    /// `reach * PLANE_SLACK`, the band's half-width in space.
+    pub(super) margin: F,
+    /// `margin * |inv|` per axis, its half-width in `t`.
+    pub(super) slack: [F; 3],
+    /// `-(org * inv) - slack` per axis.
+    pub(super) lo_off: [F; 3],
+    /// `-(org * inv) + slack` per axis.
+    pub(super) hi_off: [F; 3],
+}
+
+impl<F: Float> Bands<F> {
+    /// The bands of rays from `org` with reciprocal directions `inv` in a tree whose
+    /// box has `coord_max` as its largest absolute coordinate ([`box_coord_max`]).
+    #[inline(always)]
+    pub(super) fn new(org: &[F; 3], inv: &[F; 3], coord_max: f32) -> Bands<F> {
+        let reach = F::splat(coord_max) + simd::max_abs(org);
+        let margin = reach * F::splat(PLANE_SLACK);
+        let slack: [F; 3] = array_fn(
+            #[inline(always)]
+            |a| margin * inv[a].abs(),
+        );
+        let base: [F; 3] = array_fn(
+            #[inline(always)]
+            |a| -(org[a] * inv[a]),
+        );
+        Bands {
+            reach,
+            margin,
+            slack,
+            lo_off: array_fn(
+                #[inline(always)]
+                |a| base[a] - slack[a],
+            ),
+            hi_off: array_fn(
+                #[inline(always)]
+                |a| base[a] + slack[a],
+            ),
+        }
+    }
+}
+
+/// `[t_min, t_max]` of the rays `[org, dir, inv]` (`inv = 1 / dir`) cut to the part
+/// inside `b` (the tree's box), widened by their bands' `margin`, for one ray (`F =
+/// f32`) or one per lane: the one box clip of every walk. The mask holds the rays of
+/// `live` that reach the box. The caller leaves rays that are not usable out of `live`
+/// (a NaN or infinite origin or direction component, or a zero direction): they miss
+/// every primitive anyway, and must not walk the whole tree to find that out.
+#[inline(always)]
+pub(super) fn clip<F: Float>(
+    b: &Aabb,
+    [org, dir, inv]: [&[F; 3]; 3],
+    bands: &Bands<F>,
+    (t_min, t_max): (F, F),
+    live: F::Mask,
+) -> (F::Mask, F, F) {
+    let (splat, select) = (F::splat, F::select);
+    let (mut t0, mut t1) = (t_min, t_max);
+    let mut live = live;
+    // The triangle test's rounding grows with the origin's largest coordinate on every
+    // axis (a ray from far away along z can land a hit off in y by that much), so the box
+    // is widened by it and by the box's (`box_coord_max`), not by the coordinates of
+    // its own axis alone.
+    let margin = bands.margin;
+    for axis in 0..3 {
+        let o = org[axis];
+        let (lo, hi) = (b.min[axis], b.max[axis]);
+        let d = dir[axis];
+        // A ray parallel to the slab must start inside it.
+        let parallel = d.cmp_eq(F::ZERO);
+        let inside = o.cmp_ge(splat(lo) - margin) & o.cmp_le(splat(hi) + margin);
+        live &= !parallel | inside;
+        let slack = bands.slack[axis];
+        let ta = (splat(lo) - o) * inv[axis];
+        let tb = (splat(hi) - o) * inv[axis];
+        let positive = d.cmp_gt(F::ZERO);
+        let t_lo = select(positive, ta, tb);
+        let t_hi = select(positive, tb, ta);
+        t0 = select(parallel, t0, t0.max(t_lo - slack));
+        t1 = select(parallel, t1, t1.min(t_hi + slack));
+    }
+    (live & t0.cmp_le(t1), t0, t1)
+}
+
+/// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`]
+/// (`clip` for one ray). A ray with a NaN or infinite origin or direction component,
+/// a zero direction, or `!(t_min <= t_max)` gets `None`.
 #[inline(always)]
 pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
     if !ray.is_usable() {
         return None;
     }
-    let (mut t0, mut t1) = (ray.t_min, ray.t_max);
-    // The triangle test's rounding grows with the origin's largest coordinate on every
-    // axis (a ray from far away along z can land a hit off in y by that much), so the box
-    // is widened by it and by the box's (`box_coord_max`), not by the coordinates of
-    // its own axis alone.
-    let margin = (box_coord_max(b) + max_abs(ray.org)) * PLANE_SLACK;
-    for axis in 0..3 {
-        let o = ray.org[axis];
-        let (lo, hi) = (b.min[axis], b.max[axis]);
-        if ray.dir[axis] == 0.0 {
-            if !(o >= lo - margin && o <= hi + margin) {
-                return None;
-            }
-            continue;
-        }
-        let slack = margin * inv_dir[axis].abs();
-        let ta = (lo - o) * inv_dir[axis];
-        let tb = (hi - o) * inv_dir[axis];
-        let (t_lo, t_hi) = if ray.dir[axis] > 0.0 {
-            (ta, tb)
-        } else {
-            (tb, ta)
-        };
-        t0 = t0.max(t_lo - slack);
-        t1 = t1.min(t_hi + slack);
-    }
-    (t0 <= t1).then_some((t0, t1))
+    let (org, dir, inv) = (ray.org.to_array(), ray.dir.to_array(), inv_dir.to_array());
+    let bands = Bands::new(&org, &inv, box_coord_max(b));
+    let (reach, t0, t1) = clip(b, [&org, &dir, &inv], &bands, (ray.t_min, ray.t_max), true);
+    reach.then_some((t0, t1))
 }
 
 /// The largest absolute coordinate of `b` on any axis. The triangle test's rounding
@@ -497,17 +571,11 @@ impl Accel for KdTree {
     }
 
     fn intersect_tile(&self, rays: &[Ray], out: &mut [Hit]) {
-        match crate::accel::tile_lanes() {
-            16 => KdTree::intersect_tile::<W16>(self, rays, out),
-            _ => KdTree::intersect_tile::<W8>(self, rays, out),
-        }
+        by_width!(tile_lanes(), W in [8, 16] => KdTree::intersect_tile::<W>(self, rays, out))
     }
 
     fn occluded_tile(&self, rays: &[Ray]) -> u64 {
-        match crate::accel::tile_lanes() {
-            16 => KdTree::occluded_tile::<W16>(self, rays),
-            _ => KdTree::occluded_tile::<W8>(self, rays),
-        }
+        by_width!(tile_lanes(), W in [8, 16] => KdTree::occluded_tile::<W>(self, rays))
     }
 
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {

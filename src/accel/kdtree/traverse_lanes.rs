@@ -33,13 +33,11 @@
 use super::KdTree;
 use super::node::{LEFT_EMPTY, NodeLanes, RIGHT_EMPTY, as_words};
 use super::stats::bump;
-use super::traverse::{PLANE_SLACK, Stack, Walk};
-use super::traverse_packet::{clip_to_box_packet, step_overflows};
+use super::traverse::{Bands, Stack, Walk};
 use crate::accel::packet::RayPacket;
 use crate::ray::{Hit, Ray};
 use crate::simd::{
-    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, array_fn, inl, max_abs,
-    prefetch,
+    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, Vu, array_fn, inl, prefetch,
 };
 
 /// The lane walks (stream queries) test groups of at least this many triangles of a leaf in lanes
@@ -432,7 +430,7 @@ impl KdTree {
 
     /// The starts of the rays of `rays` from `first` on, `W::LANES` of them, into `s`:
     /// [`KdTree::start_walk`]'s interval and per-axis values in lanes, the same
-    /// operations in the same order (the box clip is [`clip_to_box_packet`]), so each
+    /// operations in the same order ([`KdTree::start_packet`]), so each
     /// lane that starts a walk starts it as the scalar set-up does; then the walking
     /// rays' shared descent ([`KdTree::descend_block`]).
     /// Out of line (a block starts once per `W::LANES` rays), compiled for `W`'s
@@ -450,26 +448,12 @@ impl KdTree {
     fn start_block_in<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
         let block = &rays[first..rays.len().min(first + W::LANES)];
         let p = RayPacket::<W>::from_rays(block);
-        let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, &p, p.active);
-        let splat = Vf::<W>::splat;
-        let o_max = max_abs(&p.org);
-        let coord_max = self.coord_max();
-        let mut scalar = Mask::<W>::NONE;
-        let mut lo_off = [splat(0.0); 3];
-        let mut hi_off = [splat(0.0); 3];
-        for a in 0..3 {
-            let inv = p.inv_dir[a];
-            let reach = splat(coord_max[a]) + o_max;
-            // Rays whose `org * inv` or `split * inv` could overflow take the scalar
-            // walk: fused, `split * inv + (-inf)` would be `-inf` where the plane lies
-            // ahead (rounded twice, it is NaN and visits both children).
-            scalar |= step_overflows(reach, inv);
-            let margin = reach * splat(PLANE_SLACK);
-            let slack = margin * inv.abs();
-            let base = -(p.org[a] * inv);
-            lo_off[a] = base - slack;
-            hi_off[a] = base + slack;
-        }
+        let (bands, (reach, t_near, t_far)) = self.start_packet(&p, p.active);
+        let Bands { lo_off, hi_off, .. } = bands;
+        // Rays with a zero component, or whose `org * inv` or `split * inv` could
+        // overflow, take the scalar walk: fused, `split * inv + (-inf)` would be `-inf`
+        // where the plane lies ahead (rounded twice, it is NaN and visits both children).
+        let scalar = self.scalar_lanes(bands.reach, &p.inv_dir);
         let scalar = scalar & p.active & p.usable();
         let walk = reach & !scalar;
         (s.base, s.end) = (first, first + block.len());
@@ -830,8 +814,8 @@ mod tests {
             for (k, ray) in rays[s.base..s.end].iter().enumerate() {
                 let mut w = Walk::new();
                 let reaches = tree.start_walk(ray, &mut w);
-                let reach =
-                    tree.coord_max() + Vec3::splat(crate::accel::triaccel::max_abs(ray.org));
+                let reach = Vec3::splat(super::super::traverse::box_coord_max(&tree.bounds))
+                    + Vec3::splat(crate::accel::triaccel::max_abs(ray.org));
                 let odd =
                     ray.is_usable() && !(reach * (Vec3::ONE / ray.dir).abs() * 2.0).is_finite();
                 let what = format!("{} lanes, ray {} {ray:?}", W::LANES, s.base + k);

@@ -9,21 +9,26 @@
 //!
 //! Invariants, so each lane returns exactly what the scalar traversal
 //! ([`super::traverse`]) returns for its ray:
-//! - Every per-lane quantity (the clipped interval, the band around the split distance,
-//!   the near/far decisions, the intervals pushed) is computed with the scalar path's
-//!   operations in its order, so a lane is active at exactly the nodes the scalar ray
-//!   visits, with the same interval, in the same front-to-back order. One exception:
-//!   where the instruction set has FMA the band's ends round once
+//! - Every lane is set up by the scalar path's own functions (`Bands`, `clip`, generic
+//!   over one lane or many), and every later per-lane quantity (the band's ends at the
+//!   split, the near/far decisions, the intervals pushed) is computed with the scalar
+//!   step's operations in its order, so a lane is active at exactly the nodes the scalar
+//!   ray visits, with the same interval, in the same front-to-back order. One
+//!   exception: where the instruction set has FMA the band's ends round once
 //!   ([`Float::mul_add_fast`]), within the plane slack as the scalar path's two
 //!   roundings are, so a lane may visit a cell more or fewer at a band's edge but finds
-//!   the same hit (`super::traverse`'s notes); lanes whose step could overflow
-//!   (`overflow_lanes`) take the scalar walk.
+//!   the same hit (`super::traverse`'s notes).
+//! - One rule for the lanes a SIMD walk cannot take (`KdTree::scalar_lanes`): a lane
+//!   with a zero direction component (it has no near side) or one so small that the
+//!   step may overflow takes the scalar walk, whose own rule for zero components is the
+//!   only one. The tile and lane walks send the same lanes there.
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
-//!   agree on the sign of each direction component (a zero component has no near side
-//!   and agrees with both). Packets that disagree are split into groups that agree and
-//!   traced one group after the other (counted in [`super::stats`]). A group of
-//!   at most `scalar_group_max` lanes (1 of 4, 2 of 8, 3 of 16) takes the scalar
-//!   traversal lane by lane, whose answer is the same.
+//!   agree on the sign of each direction component. Packets that disagree are split
+//!   into groups that agree and traced one group after the other (counted in
+//!   [`super::stats`]). A group of at most `scalar_group_max` lanes (1 of 4, 2 of 8, 3
+//!   of 16) takes the scalar traversal lane by lane, whose answer is the same.
+//! - A packet is the group walk (`KdTree::walk_groups`) of one group; a tile
+//!   (traverse_tile.rs) is the same walk of several.
 //! - Leaves run the SIMD tests of [`crate::accel::triaccel_packet`] and
 //!   [`crate::accel::prims_packet`], bit-identical to the scalar tests, and merge in
 //!   [`crate::ray::Hit::is_closer`] order; a stack entry is dropped for the lanes whose
@@ -33,22 +38,21 @@
 
 use super::KdTree;
 use super::stats::bump;
-use super::traverse::{PLANE_SLACK, Stack, box_coord_max};
+use super::traverse::{Bands, Stack, box_coord_max, clip};
 use crate::accel::packet::{HitPacket, RayPacket};
-use crate::geom::Aabb;
 use crate::ray::Hit;
 use crate::simd::{
-    AMap, Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl,
-    max_abs, prefetch,
+    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl, prefetch,
 };
 
-/// One pending far child: its node, the lanes that need it, and their interval.
+/// One pending far child of a group walk: its node and, per group, the lanes that need
+/// it and their interval.
 #[derive(Clone, Copy)]
-struct Entry<W: Simd> {
+struct Entry<W: Simd, const G: usize> {
     node: u32,
-    lanes: Mask<W>,
-    t_near: Vf<W>,
-    t_far: Vf<W>,
+    lanes: [Mask<W>; G],
+    t_near: [Vf<W>; G],
+    t_far: [Vf<W>; G],
 }
 
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
@@ -64,65 +68,50 @@ fn next_up<F: Float>(v: F) -> F {
     F::select(v.cmp_eq(F::ZERO), F::from_bits(one), r)
 }
 
-/// The packet twin of [`super::traverse::clip_to_box`]: each lane's `[t_min, t_max]`
-/// cut to the box widened by [`PLANE_SLACK`]; the mask holds the lanes that reach it
-/// (never a lane with a NaN or infinite origin or direction, a zero direction or
-/// `!(t_min <= t_max)`, as in the scalar path).
-#[inline(always)]
-pub(super) fn clip_to_box_packet<W: Simd>(
-    b: &Aabb,
-    rays: &RayPacket<W>,
-    active: Mask<W>,
-) -> (Mask<W>, Vf<W>, Vf<W>) {
-    let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
-    let (mut t0, mut t1) = (rays.t_min, rays.t_max);
-    let mut live = active & rays.usable();
-    let margin = (splat(box_coord_max(b)) + max_abs(&rays.org)) * splat(PLANE_SLACK);
-    for axis in 0..3 {
-        let o = rays.org[axis];
-        let (lo, hi) = (b.min[axis], b.max[axis]);
-        let d = rays.dir[axis];
-        let parallel = d.cmp_eq(Vf::<W>::ZERO);
-        let inside = o.cmp_ge(splat(lo) - margin) & o.cmp_le(splat(hi) + margin);
-        live &= !parallel | inside;
-        let inv = rays.inv_dir[axis];
-        let slack = margin * inv.abs();
-        let ta = (splat(lo) - o) * inv;
-        let tb = (splat(hi) - o) * inv;
-        let positive = d.cmp_gt(Vf::<W>::ZERO);
-        let t_lo = select(positive, ta, tb);
-        let t_hi = select(positive, tb, ta);
-        t0 = select(parallel, t0, t0.max(t_lo - slack));
-        t1 = select(parallel, t1, t1.min(t_hi + slack));
+impl KdTree {
+    /// The scalar walk's set-up of each lane of `rays` ([`Bands`], [`clip`]): the
+    /// bands, and the lanes of `active` that reach the tree's box with their intervals
+    /// (never a lane that is not usable, [`RayPacket::usable`]).
+    #[allow(clippy::type_complexity)]
+    #[inline(always)]
+    pub(super) fn start_packet<W: Simd>(
+        &self,
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+    ) -> (Bands<Vf<W>>, (Mask<W>, Vf<W>, Vf<W>)) {
+        let bands = Bands::new(&rays.org, &rays.inv_dir, box_coord_max(&self.bounds));
+        let clipped = clip(
+            &self.bounds,
+            [&rays.org, &rays.dir, &rays.inv_dir],
+            &bands,
+            (rays.t_min, rays.t_max),
+            active & rays.usable(),
+        );
+        (bands, clipped)
     }
-    (live & t0.cmp_le(t1), t0, t1)
+
+    /// The lanes the SIMD walks leave to the scalar walk: those with a zero direction
+    /// component (they have no near side, and the scalar walk's own rule for them,
+    /// `KdTree::step`, is the one rule) or one so small that the node step's `org *
+    /// inv` or `split * inv` may overflow ([`step_overflows`]), where the fused step
+    /// ([`Float::mul_add_fast`]) would put their band on the wrong side of a plane (an
+    /// exact product plus an infinite offset). `reach` is the lanes' [`Bands::reach`].
+    #[inline(always)]
+    pub(super) fn scalar_lanes<F: Float>(&self, reach: F, inv: &[F; 3]) -> F::Mask {
+        if !box_coord_max(&self.bounds).is_finite() {
+            // No box (a tree of planes alone, whose root is an empty leaf): no step.
+            return F::Mask::NONE;
+        }
+        step_overflows(reach, inv[0])
+            | step_overflows(reach, inv[1])
+            | step_overflows(reach, inv[2])
+    }
 }
 
-/// Lanes with a non-zero direction component so small that the node step's
-/// `org * inv` or `split * inv` may overflow (`(coord_max + |org|max) * |inv| * 2` not
-/// finite). The fused step ([`Float::mul_add_fast`]) would put their band on the wrong
-/// side of a plane (an exact product plus an infinite offset), so they take the scalar
-/// walk; zero components have their own rule in the walks.
-#[inline(always)]
-pub(super) fn overflow_lanes<W: Simd>(b: &Aabb, rays: &RayPacket<W>) -> Mask<W> {
-    let coord_max = box_coord_max(b);
-    if !coord_max.is_finite() {
-        // No box (a tree of planes alone): every band is infinite or NaN, fused or not,
-        // and a walk visits both children everywhere.
-        return Mask::<W>::NONE;
-    }
-    let reach = Vf::<W>::splat(coord_max) + max_abs(&rays.org);
-    let over = inl(
-        #[inline(always)]
-        |a: usize| !rays.dir[a].cmp_eq(Vf::<W>::ZERO) & step_overflows(reach, rays.inv_dir[a]),
-    );
-    over(0) | over(1) | over(2)
-}
-
-/// The one rule of every SIMD walk's overflow guard ([`overflow_lanes`], the tile's
-/// bound, the lane walks' starts): on an axis whose reciprocal direction is `inv`, with
-/// `reach = coord_max + |org|max` (the largest coordinate a split or the origin has),
-/// `reach * |inv| * 2` is not finite. Zero components (infinite `inv`) are set too.
+/// The one rule of every SIMD walk's guard ([`KdTree::scalar_lanes`]): on an axis whose
+/// reciprocal direction is `inv`, with `reach = coord_max + |org|max` (the largest
+/// coordinate a split or the origin has), `reach * |inv| * 2` is not finite. Zero
+/// components (infinite `inv`) are set too.
 #[inline(always)]
 pub(super) fn step_overflows<F: Float>(reach: F, inv: F) -> F::Mask {
     !(reach * inv.abs() * F::splat(2.0)).finite()
@@ -183,38 +172,39 @@ impl KdTree {
     /// [`KdTree::intersect_packet`] at backend `W`, inside its entry.
     #[inline(always)]
     pub(super) fn intersect_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
-        let mut best = HitPacket::miss();
-        // Every lane is clipped to the tree's box once; only those that reach it are
-        // grouped and walked.
-        let (reach, t_near, t_far) = clip_to_box_packet(&self.bounds, rays, rays.active);
-        let risky = reach & overflow_lanes(&self.bounds, rays);
-        let (groups, count) = coherent_groups(rays, (reach & !risky).bits());
-        let mut alone = [None; MAX_LANES];
-        let mut alone_bits = risky.bits();
+        let mut best = [HitPacket::miss()];
+        // Every lane is set up and clipped to the tree's box once; only those that reach
+        // it are grouped and walked.
+        let (bands, (reach, t_near, t_far)) = self.start_packet(rays, rays.active);
+        let alone = reach & self.scalar_lanes(bands.reach, &rays.inv_dir);
+        let (groups, count) = coherent_groups(rays, (reach & !alone).bits());
+        let mut alone_bits = alone.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
                 alone_bits |= group;
             } else {
                 let lanes = Mask::<W>::from_bits(group);
-                self.traverse_packet_from::<W, false>(
-                    rays,
-                    lanes,
-                    (0, lanes, t_near, t_far),
+                self.walk_groups::<W, 1, false>(
+                    #[inline(always)]
+                    |_| (rays, &bands),
+                    (0, [lanes], [t_near], [t_far]),
                     &mut best,
+                    &mut [Mask::<W>::NONE],
                 );
             }
         }
-        let any_alone = alone_bits != 0;
-        while alone_bits != 0 {
-            let i = alone_bits.trailing_zeros() as usize;
-            alone_bits &= alone_bits - 1;
-            if let Some(ray) = rays.lane(i) {
-                let mut hit = Hit::MISS;
-                self.traverse::<false>(&ray, &mut hit);
-                alone[i] = Some(hit);
+        let [mut best] = best;
+        if alone_bits != 0 {
+            let mut alone = [None; MAX_LANES];
+            while alone_bits != 0 {
+                let i = alone_bits.trailing_zeros() as usize;
+                alone_bits &= alone_bits - 1;
+                if let Some(ray) = rays.lane(i) {
+                    let mut hit = Hit::MISS;
+                    self.traverse::<false>(&ray, &mut hit);
+                    alone[i] = Some(hit);
+                }
             }
-        }
-        if any_alone {
             let grouped = best;
             best = HitPacket::from_lanes(
                 #[inline(always)]
@@ -248,28 +238,27 @@ impl KdTree {
     #[inline(always)]
     pub(super) fn occluded_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
         let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
-        let mut best = HitPacket::miss();
-        let (reach, t_near, t_far) =
-            clip_to_box_packet(&self.bounds, rays, rays.active & !by_plane);
-        let risky = reach & overflow_lanes(&self.bounds, rays);
-        let (groups, count) = coherent_groups(rays, (reach & !risky).bits());
-        let mut occluded = by_plane.bits();
-        let mut alone_bits = risky.bits();
+        let mut unused = [HitPacket::miss()];
+        let (bands, (reach, t_near, t_far)) = self.start_packet(rays, rays.active & !by_plane);
+        let alone = reach & self.scalar_lanes(bands.reach, &rays.inv_dir);
+        let (groups, count) = coherent_groups(rays, (reach & !alone).bits());
+        let mut occluded = [by_plane];
+        let mut alone_bits = alone.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
                 alone_bits |= group;
             } else {
                 let lanes = Mask::<W>::from_bits(group);
-                occluded |= self
-                    .traverse_packet_from::<W, true>(
-                        rays,
-                        lanes,
-                        (0, lanes, t_near, t_far),
-                        &mut best,
-                    )
-                    .bits();
+                self.walk_groups::<W, 1, true>(
+                    #[inline(always)]
+                    |_| (rays, &bands),
+                    (0, [lanes], [t_near], [t_far]),
+                    &mut unused,
+                    &mut occluded,
+                );
             }
         }
+        let mut occluded = occluded[0].bits();
         while alone_bits != 0 {
             let i = alone_bits.trailing_zeros() as usize;
             alone_bits &= alone_bits - 1;
@@ -284,72 +273,75 @@ impl KdTree {
         occluded
     }
 
-    /// Walks the tree from `node` with the lanes `lanes` (of `active`, which agree on
-    /// every direction sign), arriving there with the interval `[t_near, t_far]` they
-    /// had when clipped to the tree's box: from the root, or from the entry point of
-    /// [`super::traverse_tile`], which only passes near-only and far-only steps that
-    /// every lane takes, so no lane needs anything outside `node`'s subtree. Closest
-    /// hit: folds hits into `best`. With `ANY_HIT`: returns the lanes that hit anything
-    /// in `(t_min, t_max)`, each lane leaving at its first hit, and stops once every
-    /// lane of `active` has.
+    /// The group walk: `G` packets (`groups(g)`, with their [`Bands`]) walk the tree
+    /// together from `node`, one node load and one decision per step for all of them,
+    /// with one stack (a packet is one group; a tile is several, traverse_tile.rs:
+    /// Overbeck, Ramamoorthi and Mark 2008, partition traversal). Every lane of
+    /// `lanes` agrees on every direction sign, has no zero component
+    /// ([`KdTree::scalar_lanes`]), and arrives at `node` with the interval `[t_near,
+    /// t_far]` it had when clipped to the tree's box: from the root, or from a tile's
+    /// entry point, which only passes near-only and far-only steps that every lane
+    /// takes, so no lane needs anything outside `node`'s subtree.
     ///
-    /// Inlined into the packet kernel: out of line (an entry of its own, with the
-    /// packet passed through memory) packet8 on primary rays lost a tenth
-    /// (perf/isa.md).
+    /// Each group's lanes take the scalar step's decisions with its operations, and the
+    /// walk goes near only, far only, or near now and far later as the union of its
+    /// groups requires; a group with no lane on a side rides along masked off. So each
+    /// lane visits exactly the nodes the scalar path visits, with the same interval,
+    /// front to back. Closest hit: folds group `g`'s hits into `best[g]`. With
+    /// `ANY_HIT`: adds to `occluded[g]` the lanes that hit anything in `(t_min, t_max)`,
+    /// each lane leaving at its first hit, and stops once every lane has.
+    ///
+    /// Inlined: into the packet kernel (out of line, with the packet passed through
+    /// memory, packet8 on primary rays lost a tenth, perf/isa.md), and into a tile's
+    /// walk entry.
+    #[allow(clippy::type_complexity)]
     #[inline(always)]
-    pub(super) fn traverse_packet_from<W: Simd, const ANY_HIT: bool>(
+    pub(super) fn walk_groups<'r, W: Simd, const G: usize, const ANY_HIT: bool>(
         &self,
-        rays: &RayPacket<W>,
-        active: Mask<W>,
-        (mut node, mut lanes, mut t_near, mut t_far): (u32, Mask<W>, Vf<W>, Vf<W>),
-        best: &mut HitPacket<W>,
-    ) -> Mask<W> {
-        let (splat, select) = (Vf::<W>::splat, Vf::<W>::select);
-        let mut occluded = Mask::<W>::NONE;
-        if lanes.none() {
-            return occluded;
+        groups: impl Fn(usize) -> (&'r RayPacket<W>, &'r Bands<Vf<W>>),
+        (mut node, mut lanes, mut t_near, mut t_far): (u32, [Mask<W>; G], [Vf<W>; G], [Vf<W>; G]),
+        best: &mut [HitPacket<W>],
+        occluded: &mut [Mask<W>],
+    ) {
+        let splat = Vf::<W>::splat;
+        let (best, occluded) = (&mut best[..G], &mut occluded[..G]);
+        if union::<W, G>(&lanes).none() {
+            return;
         }
-        // Near is the left child on axes where the group's directions are not negative.
-        let negative = rays.dir.amap(
+        let rays = inl(
             #[inline(always)]
-            |d| (lanes & d.cmp_lt(Vf::<W>::ZERO)).any(),
+            |g: usize| groups(g).0,
         );
-        // The same as bits (bit `a` for axis `a`), so that the next node's index is a
-        // shift away from the node just loaded, not a dependent load.
+        let actives = lanes;
+        // Near is the left child on axes where the lanes' directions are not negative.
+        let mut negative = [false; 3];
+        for (g, l) in lanes.iter().enumerate() {
+            for (a, n) in negative.iter_mut().enumerate() {
+                *n |= (*l & rays(g).dir[a].cmp_lt(Vf::<W>::ZERO)).any();
+            }
+        }
+        // As bits, so that the next node's index is a shift from the node just loaded,
+        // not a dependent load.
         let neg_bits = (0..3).fold(
             0u32,
             #[inline(always)]
             |b, a| b | (negative[a] as u32) << a,
         );
-        let zero = rays.dir.amap(
+        // Per axis, the groups' reciprocals and band offsets side by side, so that a
+        // step loads them at one offset.
+        let inv = per_axis::<W, G>(
             #[inline(always)]
-            |d| d.cmp_eq(Vf::<W>::ZERO),
+            |a, g| rays(g).inv_dir[a],
         );
-        let any_zero = zero.amap(
+        let lo_offs = per_axis::<W, G>(
             #[inline(always)]
-            |z| (lanes & z).any(),
+            |a, g| groups(g).1.lo_off[a],
         );
-        // The plane margin and its `t` interval per axis, as the scalar path's `RayAxes`.
-        let coord_max = self.coord_max();
-        let o_max = max_abs(&rays.org);
-        let margins: [Vf<W>; 3] = array_fn(
+        let hi_offs = per_axis::<W, G>(
             #[inline(always)]
-            |a| (splat(coord_max[a]) + o_max) * splat(PLANE_SLACK),
+            |a, g| groups(g).1.hi_off[a],
         );
-        // The band's ends at a plane as `split * inv + off` (`RayAxes`).
-        let slacks: [Vf<W>; 3] = array_fn(
-            #[inline(always)]
-            |a| margins[a] * rays.inv_dir[a].abs(),
-        );
-        let lo_off: [Vf<W>; 3] = array_fn(
-            #[inline(always)]
-            |a| -(rays.org[a] * rays.inv_dir[a]) - slacks[a],
-        );
-        let hi_off: [Vf<W>; 3] = array_fn(
-            #[inline(always)]
-            |a| -(rays.org[a] * rays.inv_dir[a]) + slacks[a],
-        );
-        let mut stack = Stack::<Entry<W>>::new();
+        let mut stack = Stack::<Entry<W, G>>::new();
         'walk: loop {
             let n = self.nodes[node as usize];
             // Leaves, and inner nodes whose lanes all go to empty children, end here and
@@ -363,19 +355,15 @@ impl KdTree {
                     );
                     // Walks never enter empty leaves but a tree that is one.
                     if !prims.is_empty() {
-                        let mut hit = [Mask::<W>::NONE];
-                        let one = std::slice::from_mut(best);
-                        self.leaf_groups::<W, 1, ANY_HIT>(
-                            prims,
-                            #[inline(always)]
-                            |_| rays,
-                            &[lanes],
-                            one,
-                            &mut hit,
-                        );
-                        occluded |= hit[0];
-                        if ANY_HIT && (active & !occluded).none() {
-                            return occluded;
+                        self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
+                        if ANY_HIT
+                            && union::<W, G>(&array_fn(
+                                #[inline(always)]
+                                |g| actives[g] & !occluded[g],
+                            ))
+                            .none()
+                        {
+                            return;
                         }
                     }
                     break 'visit;
@@ -386,78 +374,81 @@ impl KdTree {
                 );
                 let axis = n.axis();
                 let children = n.children();
-                let (o, inv) = (rays.org[axis], rays.inv_dir[axis]);
                 let split = splat(n.split);
-                let margin = margins[axis];
-                let lo = split.mul_add_fast(inv, lo_off[axis]);
-                let hi = split.mul_add_fast(inv, hi_off[axis]);
                 let flip = (neg_bits >> axis) & 1;
                 let (near, far) = (children + flip, children + (flip ^ 1));
-                let (near_only, far_only) = if any_zero[axis] {
-                    // Lanes parallel to the plane keep their interval and go to the
-                    // sides within `margin` of their origin.
-                    let z = zero[axis];
-                    let left_only = (o + margin).cmp_lt(split);
-                    let right_only = (o - margin).cmp_gt(split);
-                    let (near_z, far_z) = if negative[axis] {
-                        (right_only, left_only)
-                    } else {
-                        (left_only, right_only)
-                    };
-                    (
-                        (z & near_z) | (!z & lo.cmp_gt(t_far)),
-                        (z & far_z) | (!z & hi.cmp_lt(t_near)),
-                    )
-                } else {
-                    let near_only = lo.cmp_gt(t_far);
+                let (inv, lo_off, hi_off) = (&inv[axis], &lo_offs[axis], &hi_offs[axis]);
+                let lo: [Vf<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| split.mul_add_fast(inv[g], lo_off[g]),
+                );
+                let hi: [Vf<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| split.mul_add_fast(inv[g], hi_off[g]),
+                );
+                let near_only: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lo[g].cmp_gt(t_far[g]),
+                );
+                let mut far_lanes: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lanes[g] & !near_only[g],
+                );
+                if union::<W, G>(&far_lanes).none() {
                     // The commonest step: every lane goes near only, its mask unchanged
-                    // (the far test below could not remove a near-only lane).
-                    if (lanes & !near_only).none() {
-                        // An empty near leaf holds nothing for them.
-                        if n.empty_near_far(flip) & 1 != 0 {
-                            break 'visit;
-                        }
-                        node = near;
-                        continue 'walk;
+                    // (an empty near leaf holds nothing for them).
+                    if n.empty_near_far(flip) & 1 != 0 {
+                        break 'visit;
                     }
-                    (near_only, hi.cmp_lt(t_near))
-                };
+                    node = near;
+                    continue 'walk;
+                }
                 // Bit 0 for an empty near leaf, bit 1 for an empty far one.
                 let empty = n.empty_near_far(flip);
                 // As in the scalar path, near-only wins when both tests pass. No lane
                 // goes to an empty leaf: it holds nothing.
-                let mut near_lanes = lanes & !(far_only & !near_only);
-                let mut far_lanes = lanes & !near_only;
-                if empty != 0 {
-                    if empty & 1 != 0 {
-                        near_lanes = Mask::<W>::NONE;
-                    }
-                    if empty & 2 != 0 {
-                        far_lanes = Mask::<W>::NONE;
-                    }
+                let mut near_lanes: [Mask<W>; G] = array_fn(
+                    #[inline(always)]
+                    |g| lanes[g] & !(hi[g].cmp_lt(t_near[g]) & !near_only[g]),
+                );
+                if empty & 1 != 0 {
+                    near_lanes = [Mask::<W>::NONE; G];
                 }
-                if far_lanes.none() {
-                    if near_lanes.none() {
+                if empty & 2 != 0 {
+                    far_lanes = [Mask::<W>::NONE; G];
+                }
+                let any = inl(
+                    #[inline(always)]
+                    |m: &[Mask<W>; G]| union::<W, G>(m).any(),
+                );
+                if !any(&far_lanes) {
+                    if !any(&near_lanes) {
                         break 'visit;
                     }
                     node = near;
                     lanes = near_lanes;
-                    if empty != 0 {
-                        // The near interval of lanes that would also have gone far;
-                        // near-only lanes keep theirs (`hi > t_far` there).
-                        t_far = select(zero[axis], t_far, hi.min_lt(t_far));
-                    }
-                } else if near_lanes.none() {
+                    // The near interval of lanes that would also have gone far;
+                    // near-only lanes keep theirs (`hi > t_far` there).
+                    t_far = array_fn(
+                        #[inline(always)]
+                        |g| hi[g].min_lt(t_far[g]),
+                    );
+                } else if !any(&near_lanes) {
                     node = far;
                     lanes = far_lanes;
                     if empty != 0 {
                         // The interval the pop of the far child would have given the
                         // lanes that went near first (far-only lanes keep theirs), and
                         // the pop's test against their best hits.
-                        t_near = select(zero[axis], t_near, lo.max_gt(t_near));
+                        t_near = array_fn(
+                            #[inline(always)]
+                            |g| lo[g].max_gt(t_near[g]),
+                        );
                         if !ANY_HIT {
-                            lanes &= !t_near.cmp_gt(best.t);
-                            if lanes.none() {
+                            for g in 0..G {
+                                lanes[g] &= !t_near[g].cmp_gt(best[g].t);
+                            }
+                            if !any(&lanes) {
                                 break 'visit;
                             }
                         }
@@ -466,25 +457,35 @@ impl KdTree {
                     stack.push(Entry {
                         node: far,
                         lanes: far_lanes,
-                        t_near: select(zero[axis], t_near, lo.max_gt(t_near)),
+                        t_near: array_fn(
+                            #[inline(always)]
+                            |g| lo[g].max_gt(t_near[g]),
+                        ),
                         t_far,
                     });
                     node = near;
                     lanes = near_lanes;
-                    t_far = select(zero[axis], t_far, hi.min_lt(t_far));
+                    t_far = array_fn(
+                        #[inline(always)]
+                        |g| hi[g].min_lt(t_far[g]),
+                    );
                 }
                 continue 'walk;
             }
             loop {
                 let Some(e) = stack.pop() else {
-                    return occluded;
+                    return;
                 };
-                lanes = if ANY_HIT {
-                    e.lanes & !occluded
-                } else {
-                    e.lanes & !e.t_near.cmp_gt(best.t)
-                };
-                if lanes.any() {
+                let mut any = Mask::<W>::NONE;
+                for g in 0..G {
+                    lanes[g] = if ANY_HIT {
+                        e.lanes[g] & !occluded[g]
+                    } else {
+                        e.lanes[g] & !e.t_near[g].cmp_gt(best[g].t)
+                    };
+                    any |= lanes[g];
+                }
+                if any.any() {
                     (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
                     break;
                 }
@@ -571,4 +572,29 @@ impl KdTree {
             }
         }
     }
+}
+
+/// The lanes set in any of the groups' masks (a loop, not `Iterator::fold`, which LLVM
+/// may keep out of line: see [`crate::simd::inl`]).
+#[inline(always)]
+pub(super) fn union<W: Simd, const G: usize>(masks: &[Mask<W>; G]) -> Mask<W> {
+    let mut all = Mask::<W>::NONE;
+    for &m in masks {
+        all |= m;
+    }
+    all
+}
+
+/// `f(axis, group)` for every axis and group, axis first.
+#[inline(always)]
+fn per_axis<W: Simd, const G: usize>(f: impl Fn(usize, usize) -> Vf<W>) -> [[Vf<W>; G]; 3] {
+    array_fn(
+        #[inline(always)]
+        |a| {
+            array_fn(
+                #[inline(always)]
+                |g| f(a, g),
+            )
+        },
+    )
 }

@@ -14,7 +14,7 @@
 use super::KdTree;
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{Simd, W4, W8, W16, dispatch, native_lanes};
+use crate::simd::{Simd, by_width, dispatch, native_lanes};
 
 /// Trees with fewer nodes answer streams ray by ray (perf/log/stream.md, "Small trees").
 pub const STREAM_MIN_NODES: usize = 8192;
@@ -39,11 +39,7 @@ impl KdTree {
             intersect_each(self, rays, hits);
             return;
         }
-        match native_lanes() {
-            16 => self.intersect_lanes::<W16>(rays, hits),
-            8 => self.intersect_lanes::<W8>(rays, hits),
-            _ => self.intersect_lanes::<W4>(rays, hits),
-        }
+        by_width!(native_lanes(), W => self.intersect_lanes::<W>(rays, hits))
     }
 
     /// Any-hit answers of `rays` into `occluded` (same length), as
@@ -54,11 +50,7 @@ impl KdTree {
             occluded_each(self, rays, occluded);
             return;
         }
-        match native_lanes() {
-            16 => self.occluded_lanes::<W16>(rays, occluded),
-            8 => self.occluded_lanes::<W8>(rays, occluded),
-            _ => self.occluded_lanes::<W4>(rays, occluded),
-        }
+        by_width!(native_lanes(), W => self.occluded_lanes::<W>(rays, occluded))
     }
 
     /// [`KdTree::intersect_stream`] through the lane walks at width `W` whatever the

@@ -27,18 +27,19 @@
 //! Below it, a lane is active exactly where its scalar traversal is, with the same
 //! interval and in the same front-to-back order (all the tile's lanes agree on the
 //! near child), and a group with no lane on a side rides along masked off.
-//! Tiles whose lanes disagree on a direction sign, have a zero or non-invertible
-//! direction component (or one so small that the node step may overflow,
-//! `traverse_packet::overflow_lanes`), or fit in one group skip the descent and trace
-//! each group as an ordinary packet; [`super::stats`] counts how often.
+//! Tiles whose lanes disagree on a direction sign, have a lane the SIMD walks leave to
+//! the scalar walk (a zero direction component, or one so small that the node step may
+//! overflow: `KdTree::scalar_lanes`), or fit in one group skip the descent and trace
+//! each group as an ordinary packet; [`super::stats`] counts how often. Below the
+//! entry point a tile is the packets' group walk (`KdTree::walk_groups`) with
+//! several groups.
 
 use super::KdTree;
 use super::stats::bump;
-use super::traverse::{PLANE_SLACK, Stack};
-use super::traverse_packet::{clip_to_box_packet, step_overflows};
+use super::traverse::{Bands, PLANE_SLACK, box_coord_max};
 use crate::accel::packet::{HitPacket, RayPacket, low_bits};
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs};
+use crate::simd::{Float, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl};
 
 use crate::accel::{TILE_RAYS, TileWidth};
 
@@ -59,15 +60,9 @@ fn count(fallback: bool, depth: u64) {
     );
 }
 
-/// One pending far child of a tile: its node and, per group, the lanes that need it and
-/// their interval.
-#[derive(Clone, Copy)]
-struct TileEntry<W: Simd, const G: usize> {
-    node: u32,
-    lanes: [Mask<W>; G],
-    t_near: [Vf<W>; G],
-    t_far: [Vf<W>; G],
-}
+/// Each group's lanes that reach the tree's box and their intervals
+/// ([`KdTree::start_packet`]).
+type Clips<W> = [(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS];
 
 /// Per-lane values reduced over the live lanes of all groups.
 #[derive(Clone, Copy)]
@@ -181,17 +176,16 @@ impl KdTree {
     }
 
     /// The tile's groups walk the tree together from `node` (the entry point), each with
-    /// its lanes and interval `clips`: one node load and one decision per step for the
-    /// whole tile, one shared stack (Overbeck, Ramamoorthi and Mark 2008, partition
-    /// traversal). Closest hit: folds hits into `best`; with `ANY_HIT`, sets the
-    /// occluded lanes in `occluded`.
-    #[allow(clippy::type_complexity)]
+    /// its lanes and interval `clips`: the group walk
+    /// ([`KdTree::walk_groups`]) of `G` groups (`G * W::LANES` = [`TILE_RAYS`]; groups
+    /// past `groups.len()` have no lanes). Closest hit: folds hits into `best`; with
+    /// `ANY_HIT`, sets the occluded lanes in `occluded`.
     #[inline(always)]
     fn tile_walk<W: Simd, const ANY_HIT: bool>(
         &self,
         groups: &[RayPacket<W>],
         node: u32,
-        clips: &[(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS],
+        clips: &Clips<W>,
         best: &mut [HitPacket<W>; MAX_GROUPS],
         occluded: &mut [Mask<W>; MAX_GROUPS],
     ) {
@@ -208,29 +202,18 @@ impl KdTree {
         )
     }
 
-    /// [`Self::tile_walk`] with `G` groups (`G * W::LANES` = [`TILE_RAYS`]; groups past
-    /// `groups.len()` have no lanes).
-    ///
-    /// Each group's lanes take the packet traversal's decisions with its operations
-    /// ([`super::traverse_packet`]), and the tile goes near only, far only, or near now
-    /// and far later as the union of its groups requires; a group with no lane on a side
-    /// rides along masked off. The tile's lanes agree on every direction sign and have
-    /// no zero component ([`Self::tile_bound`]), so near and far mean the same child for
-    /// all of them, and each lane visits exactly the nodes the scalar path visits, with
-    /// the same interval, front to back.
-    #[allow(clippy::type_complexity)]
+    /// [`Self::tile_walk`] with `G` groups.
     #[inline(always)]
     fn tile_walk_n<W: Simd, const G: usize, const ANY_HIT: bool>(
         &self,
         groups: &[RayPacket<W>],
-        mut node: u32,
-        clips: &[(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS],
+        node: u32,
+        clips: &Clips<W>,
         best: &mut [HitPacket<W>; MAX_GROUPS],
         occluded: &mut [Mask<W>; MAX_GROUPS],
     ) {
-        let splat = Vf::<W>::splat;
         let n_groups = groups.len().min(G);
-        let mut lanes: [Mask<W>; G] = array_fn(
+        let lanes: [Mask<W>; G] = array_fn(
             #[inline(always)]
             |g| {
                 if g < n_groups {
@@ -240,224 +223,31 @@ impl KdTree {
                 }
             },
         );
-        let mut t_near: [Vf<W>; G] = array_fn(
+        let t_near = array_fn(
             #[inline(always)]
             |g| clips[g].1,
         );
-        let mut t_far: [Vf<W>; G] = array_fn(
+        let t_far = array_fn(
             #[inline(always)]
             |g| clips[g].2,
         );
-        if union::<W, G>(&lanes).none() {
-            return;
-        }
-        let rays = inl(
+        // The bands again (the bound's are not kept: passed in, they cost the walk
+        // 10-20% on camera and shadow tiles).
+        let coord_max = box_coord_max(&self.bounds);
+        let bands: [Bands<Vf<W>>; G] = array_fn(
             #[inline(always)]
-            |g: usize| &groups[g.min(n_groups - 1)],
-        );
-        let actives: [Mask<W>; G] = array_fn(
-            #[inline(always)]
-            |g| lanes[g],
-        );
-        let mut negative = [false; 3];
-        for (g, l) in lanes.iter().enumerate() {
-            for (a, n) in negative.iter_mut().enumerate() {
-                *n |= (*l & rays(g).dir[a].cmp_lt(Vf::<W>::ZERO)).any();
-            }
-        }
-        // Per axis, the groups' origins, reciprocals and plane slacks side by side, so
-        // that a step loads them at one offset.
-        // As bits, so that the next node's index is a shift from the node just loaded.
-        let neg_bits = (0..3).fold(
-            0u32,
-            #[inline(always)]
-            |b, a| b | (negative[a] as u32) << a,
-        );
-        let coord_max = self.coord_max();
-        let o_max: [Vf<W>; G] = array_fn(
-            #[inline(always)]
-            |g| max_abs(&rays(g).org),
-        );
-        let inv: [[Vf<W>; G]; 3] = array_fn(
-            #[inline(always)]
-            |a| {
-                array_fn(
-                    #[inline(always)]
-                    |g| rays(g).inv_dir[a],
-                )
+            |g| {
+                let p = &groups[g.min(n_groups - 1)];
+                Bands::new(&p.org, &p.inv_dir, coord_max)
             },
         );
-        // The band's ends at a plane as `split * inv + off` (`RayAxes`).
-        let offs = inl(
+        self.walk_groups::<W, G, ANY_HIT>(
             #[inline(always)]
-            |sign: f32| -> [[Vf<W>; G]; 3] {
-                array_fn(
-                    #[inline(always)]
-                    |a| {
-                        array_fn(
-                            #[inline(always)]
-                            |g| {
-                                let slack = (splat(coord_max[a]) + o_max[g])
-                                    * splat(PLANE_SLACK)
-                                    * inv[a][g].abs();
-                                let neg = -(rays(g).org[a] * inv[a][g]);
-                                if sign < 0.0 { neg - slack } else { neg + slack }
-                            },
-                        )
-                    },
-                )
-            },
+            |g: usize| (&groups[g.min(n_groups - 1)], &bands[g]),
+            (node, lanes, t_near, t_far),
+            best,
+            occluded,
         );
-        let (lo_offs, hi_offs) = (offs(-1.0), offs(1.0));
-        let mut stack = Stack::<TileEntry<W, G>>::new();
-        'walk: loop {
-            let n = self.nodes[node as usize];
-            // Leaves, and inner nodes whose lanes all go to empty children, end here and
-            // fall through to the pops; every other step continues at a child.
-            'visit: {
-                if n.is_leaf() {
-                    let prims = self.leaf_prims(&n);
-                    bump(
-                        #[inline(always)]
-                        |c| c.leaf_visits += 1,
-                    );
-                    if !prims.is_empty() {
-                        self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
-                        if ANY_HIT
-                            && union::<W, G>(&array_fn(
-                                #[inline(always)]
-                                |g| actives[g] & !occluded[g],
-                            ))
-                            .none()
-                        {
-                            return;
-                        }
-                    }
-                    break 'visit;
-                }
-                bump(
-                    #[inline(always)]
-                    |c| c.node_steps += 1,
-                );
-                let axis = n.axis();
-                let children = n.children();
-                let split = splat(n.split);
-                let flip = (neg_bits >> axis) & 1;
-                let (near, far) = (children + flip, children + (flip ^ 1));
-                let (inv, lo_off, hi_off) = (&inv[axis], &lo_offs[axis], &hi_offs[axis]);
-                let lo: [Vf<W>; G] = array_fn(
-                    #[inline(always)]
-                    |g| split.mul_add_fast(inv[g], lo_off[g]),
-                );
-                let hi: [Vf<W>; G] = array_fn(
-                    #[inline(always)]
-                    |g| split.mul_add_fast(inv[g], hi_off[g]),
-                );
-                let near_only: [Mask<W>; G] = array_fn(
-                    #[inline(always)]
-                    |g| lo[g].cmp_gt(t_far[g]),
-                );
-                let mut far_lanes: [Mask<W>; G] = array_fn(
-                    #[inline(always)]
-                    |g| lanes[g] & !near_only[g],
-                );
-                if union::<W, G>(&far_lanes).none() {
-                    // The commonest step: every lane goes near only (an empty near
-                    // leaf holds nothing for them).
-                    if n.empty_near_far(flip) & 1 != 0 {
-                        break 'visit;
-                    }
-                    node = near;
-                    continue 'walk;
-                }
-                // Bit 0 for an empty near leaf, bit 1 for an empty far one.
-                let empty = n.empty_near_far(flip);
-                // As in the scalar path, near-only wins when both tests pass. No lane
-                // goes to an empty leaf: it holds nothing.
-                let mut near_lanes: [Mask<W>; G] = array_fn(
-                    #[inline(always)]
-                    |g| lanes[g] & !(hi[g].cmp_lt(t_near[g]) & !near_only[g]),
-                );
-                if empty & 1 != 0 {
-                    near_lanes = [Mask::<W>::NONE; G];
-                }
-                if empty & 2 != 0 {
-                    far_lanes = [Mask::<W>::NONE; G];
-                }
-                let any = inl(
-                    #[inline(always)]
-                    |m: &[Mask<W>; G]| union::<W, G>(m).any(),
-                );
-                if !any(&far_lanes) {
-                    if !any(&near_lanes) {
-                        break 'visit;
-                    }
-                    node = near;
-                    lanes = near_lanes;
-                    // The near interval of lanes that would also have gone far;
-                    // near-only lanes keep theirs (`hi > t_far` there).
-                    t_far = array_fn(
-                        #[inline(always)]
-                        |g| hi[g].min_lt(t_far[g]),
-                    );
-                } else if !any(&near_lanes) {
-                    node = far;
-                    lanes = far_lanes;
-                    if empty != 0 {
-                        // The interval the pop of the far child would have given the
-                        // lanes that went near first (far-only lanes keep theirs), and
-                        // the pop's test against their best hits.
-                        t_near = array_fn(
-                            #[inline(always)]
-                            |g| lo[g].max_gt(t_near[g]),
-                        );
-                        if !ANY_HIT {
-                            for g in 0..G {
-                                lanes[g] &= !t_near[g].cmp_gt(best[g].t);
-                            }
-                            if !any(&lanes) {
-                                break 'visit;
-                            }
-                        }
-                    }
-                } else {
-                    stack.push(TileEntry {
-                        node: far,
-                        lanes: far_lanes,
-                        t_near: array_fn(
-                            #[inline(always)]
-                            |g| lo[g].max_gt(t_near[g]),
-                        ),
-                        t_far,
-                    });
-                    node = near;
-                    lanes = near_lanes;
-                    t_far = array_fn(
-                        #[inline(always)]
-                        |g| hi[g].min_lt(t_far[g]),
-                    );
-                }
-                continue 'walk;
-            }
-            loop {
-                let Some(e) = stack.pop() else {
-                    return;
-                };
-                let mut any = Mask::<W>::NONE;
-                for g in 0..G {
-                    lanes[g] = if ANY_HIT {
-                        e.lanes[g] & !occluded[g]
-                    } else {
-                        e.lanes[g] & !e.t_near[g].cmp_gt(best[g].t)
-                    };
-                    any |= lanes[g];
-                }
-                if any.any() {
-                    (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
-                    break;
-                }
-            }
-        }
     }
 
     /// The entry node of the tile's groups (their lanes `actives`) and each group's lanes
@@ -469,7 +259,7 @@ impl KdTree {
         &self,
         groups: &[RayPacket<W>],
         actives: &[Mask<W>],
-    ) -> Option<(u32, [(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS])> {
+    ) -> Option<(u32, Clips<W>)> {
         let Some(bound) = (groups.len() > 1)
             .then(
                 #[inline(always)]
@@ -537,10 +327,9 @@ impl KdTree {
         &self,
         groups: &[RayPacket<W>],
         actives: &[Mask<W>],
-    ) -> Option<([(Mask<W>, Vf<W>, Vf<W>); MAX_GROUPS], Bound)> {
+    ) -> Option<(Clips<W>, Bound)> {
         let splat = Vf::<W>::splat;
-        let coord_max = self.coord_max();
-        let mut clips = [(Mask::<W>::NONE, Vf::<W>::ZERO, Vf::<W>::ZERO); MAX_GROUPS];
+        let mut clips: Clips<W> = [(Mask::<W>::NONE, Vf::<W>::ZERO, Vf::<W>::ZERO); MAX_GROUPS];
         let mut b = Bound {
             o_lo: [f32::INFINITY; 3],
             o_hi: [f32::NEG_INFINITY; 3],
@@ -562,24 +351,23 @@ impl KdTree {
         let (mut t_near_min, mut t_far_max) = (inf, ninf);
         let select = Vf::<W>::select;
         for (g, p) in groups.iter().enumerate() {
-            let (lanes, t_near, t_far) = clip_to_box_packet(&self.bounds, p, actives[g]);
-            clips[g] = (lanes, t_near, t_far);
+            let (bands, clip) = self.start_packet(p, actives[g]);
+            clips[g] = clip;
+            let (lanes, t_near, t_far) = clip;
             if lanes.none() {
                 continue;
             }
-            let o_max = max_abs(&p.org);
+            // A zero (or subnormal) component has no finite reciprocal, and a tiny one
+            // a step that may overflow: such lanes take the scalar walk.
+            if (lanes & self.scalar_lanes(bands.reach, &p.inv_dir)).any() {
+                return None;
+            }
             for a in 0..3 {
                 let d = p.dir[a];
                 neg[a] |= (lanes & d.cmp_lt(Vf::<W>::ZERO)).any();
                 pos[a] |= (lanes & d.cmp_gt(Vf::<W>::ZERO)).any();
                 let inv = p.inv_dir[a];
-                // A zero (or subnormal) component has no finite reciprocal, and a tiny
-                // one a step that may overflow (`overflow_lanes`).
-                let reach = splat(coord_max[a]) + o_max;
-                if (lanes & step_overflows(reach, inv)).any() {
-                    return None;
-                }
-                let slack = reach * splat(PLANE_SLACK) * inv.abs();
+                let slack = bands.slack[a];
                 o_lo[a] = o_lo[a].min_lt(select(lanes, p.org[a], inf));
                 o_hi[a] = o_hi[a].max_gt(select(lanes, p.org[a], ninf));
                 inv_lo[a] = inv_lo[a].min_lt(select(lanes, inv, inf));
@@ -638,15 +426,4 @@ fn groups<W: Simd>(rays: &[Ray]) -> [RayPacket<W>; MAX_GROUPS] {
     }
     debug_assert!(out[0].active.bits() == low_bits(rays.len().min(W::LANES)));
     out
-}
-
-/// The lanes set in any of the groups' masks (a loop, not `Iterator::fold`, which LLVM
-/// may keep out of line: see [`crate::simd::inl`]).
-#[inline(always)]
-fn union<W: Simd, const G: usize>(masks: &[Mask<W>; G]) -> Mask<W> {
-    let mut all = Mask::<W>::NONE;
-    for &m in masks {
-        all |= m;
-    }
-    all
 }
