@@ -42,28 +42,26 @@ macro_rules! avx {
 }
 
 /// Eight f32 lanes in one `ymm` register.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
 pub struct F32x8(__m256);
 
 /// Eight u32 lanes in one `ymm` register.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
 pub struct U32x8(__m256i);
 
 impl F32x8 {
     #[inline(always)]
     fn to_array(self) -> [f32; 8] {
-        // SAFETY: same size, every bit pattern valid for both.
-        unsafe { std::mem::transmute::<__m256, [f32; 8]>(self.0) }
+        bytemuck::cast(self.0)
     }
 }
 
 impl U32x8 {
     #[inline(always)]
     fn to_array(self) -> [u32; 8] {
-        // SAFETY: same size, every bit pattern valid for both.
-        unsafe { std::mem::transmute::<__m256i, [u32; 8]>(self.0) }
+        bytemuck::cast(self.0)
     }
 }
 
@@ -429,15 +427,18 @@ impl Uint for U32x8 {
 }
 
 /// Sixteen f32 lanes in two `ymm` registers, lanes 0..8 in the first.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(transparent)]
 pub struct F32x16([F32x8; 2]);
 
 /// Sixteen u32 lanes in two `ymm` registers.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(transparent)]
 pub struct U32x16([U32x8; 2]);
 
 /// The masks of [`F32x16`]: two 8-lane masks.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(transparent)]
 pub struct Mask16([VBool<__m256>; 2]);
 
 macro_rules! halves {

@@ -46,40 +46,34 @@ macro_rules! avx {
 }
 
 /// Sixteen f32 lanes in one `zmm` register.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
 pub struct F32x16(__m512);
 
 /// Sixteen u32 lanes in one `zmm` register.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
 pub struct U32x16(__m512i);
 
 impl F32x16 {
     #[inline(always)]
     fn to_array(self) -> [f32; 16] {
-        // SAFETY: `__m512` and `[f32; 16]` have the same size, every bit pattern is
-        // valid for both.
-        unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }
+        bytemuck::cast(self.0)
     }
     #[inline(always)]
     fn from_array(a: [f32; 16]) -> F32x16 {
-        // SAFETY: as in `to_array`.
-        F32x16(unsafe { std::mem::transmute::<[f32; 16], __m512>(a) })
+        F32x16(bytemuck::cast(a))
     }
 }
 
 impl U32x16 {
     #[inline(always)]
     fn to_array(self) -> [u32; 16] {
-        // SAFETY: `__m512i` and `[u32; 16]` have the same size, every bit pattern is
-        // valid for both.
-        unsafe { std::mem::transmute::<__m512i, [u32; 16]>(self.0) }
+        bytemuck::cast(self.0)
     }
     #[inline(always)]
     fn from_array(a: [u32; 16]) -> U32x16 {
-        // SAFETY: as in `to_array`.
-        U32x16(unsafe { std::mem::transmute::<[u32; 16], __m512i>(a) })
+        U32x16(bytemuck::cast(a))
     }
 }
 
@@ -504,13 +498,9 @@ impl Uint for U32x16 {
             #[inline(always)]
             |i| pair(i + 8),
         );
-        // SAFETY: `[u64; 8]` and `__m512i` have the same size, every bit pattern is
-        // valid for both; AVX-512F is enabled (see `avx!`).
+        let (lo, hi): (__m512i, __m512i) = (bytemuck::cast(lo), bytemuck::cast(hi));
+        // SAFETY: AVX-512F is enabled (see `avx!`).
         unsafe {
-            let (lo, hi) = (
-                std::mem::transmute::<[u64; 8], __m512i>(lo),
-                std::mem::transmute::<[u64; 8], __m512i>(hi),
-            );
             let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
             let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
             (

@@ -75,6 +75,7 @@ mod others {
 #[cfg(not(target_arch = "x86_64"))]
 pub(crate) use others::*;
 
+use bytemuck::Pod;
 use std::fmt::Debug;
 use std::ops::{Add, BitAnd, BitAndAssign, BitOr, BitOrAssign, Div, Mul, Neg, Not, Sub};
 
@@ -94,12 +95,13 @@ pub trait Simd: Copy + Clone + Debug + Default + Send + Sync + 'static {
     const LANES: usize;
     /// The instruction set the backend's vector types are made of.
     const ISA: Isa;
-    /// One f32 per lane.
-    type F: Float<Mask = Self::Mask, U = Self::U>;
+    /// One f32 per lane (`Pod`: a backend's vectors are their lanes and nothing else,
+    /// so two backends of one width trade them as bytes, `recast`).
+    type F: Float<Mask = Self::Mask, U = Self::U> + Pod;
     /// One u32 per lane (primitive ids, float bits).
-    type U: Uint<Mask = Self::Mask>;
+    type U: Uint<Mask = Self::Mask> + Pod;
     /// One bool per lane.
-    type Mask: LaneMask;
+    type Mask: LaneMask + Pod;
     /// The 4- and 8-lane backends of the same instruction set, for a kernel of this
     /// width that works at another inside its entry (the lane walks test a leaf's
     /// triangles in 4 or 8 lanes): the portable `W8` is two SSE registers and
@@ -369,7 +371,8 @@ pub trait LaneMask:
 
 /// A lane mask of width `V` (all bits set or clear per lane, as the comparisons
 /// return); its own type so that it cannot be used as a value.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(transparent)]
 pub struct VBool<V>(V);
 
 /// `f` itself. Rust takes `#[inline(always)]` on a closure only where it is an argument,
@@ -425,35 +428,17 @@ pub(crate) fn rows4_lanes<'r, F: Float>(rows: impl Fn(usize) -> &'r [f32; 4]) ->
     )
 }
 
-/// `x`'s bytes as a `B` when the two have one size, else `None`.
-///
-/// # Safety
-/// `A` and `B` must be lane types of one lane count (vectors or masks), each nothing
-/// but its lanes in order, so that equal sizes mean equal layouts and every bit
-/// pattern of `A` is a valid `B`.
-#[inline(always)]
-unsafe fn same_bytes<A, B>(x: &A) -> Option<B> {
-    // (An `if`, not `bool::then`: std's combinators may stay out of line, compiled for
-    // the baseline; see [`inl`].)
-    if size_of::<A>() == size_of::<B>() {
-        // SAFETY: the caller's contract; the size check keeps the copy in bounds.
-        Some(unsafe { std::mem::transmute_copy(x) })
-    } else {
-        None
-    }
-}
-
 /// The same lanes in another backend of the same width (a portable packet handed to
 /// the backend of the instruction set in use, and its answers back): no bit changes.
 /// Every vector type is its lanes in order and nothing else (`wide`'s, `__m256`,
-/// `__m512`, pairs of them), so two of one size are the same bytes: a copy, no
-/// shuffles (lane by lane it cost packet8 a fifth of its rate).
+/// `__m512`, pairs of them), so two of one size are the same bytes: a copy
+/// (`bytemuck::try_cast`), no shuffles (lane by lane it cost packet8 a fifth of its
+/// rate).
 #[inline(always)]
-pub(crate) fn recast<A: Float, B: Float>(x: A) -> B {
-    // SAFETY: f32 lanes in order (above); every bit pattern is a valid f32.
-    match unsafe { same_bytes(&x) } {
-        Some(y) => y,
-        None => B::from_fn(
+pub(crate) fn recast<A: Float + Pod, B: Float + Pod>(x: A) -> B {
+    match bytemuck::try_cast(x) {
+        Ok(y) => y,
+        Err(_) => B::from_fn(
             #[inline(always)]
             |i| x.lane(i),
         ),
@@ -462,11 +447,10 @@ pub(crate) fn recast<A: Float, B: Float>(x: A) -> B {
 
 /// [`recast`] of u32 lanes.
 #[inline(always)]
-pub(crate) fn recast_u<A: Uint, B: Uint>(x: A) -> B {
-    // SAFETY: as in `recast`, for u32 lanes.
-    match unsafe { same_bytes(&x) } {
-        Some(y) => y,
-        None => B::from_fn(
+pub(crate) fn recast_u<A: Uint + Pod, B: Uint + Pod>(x: A) -> B {
+    match bytemuck::try_cast(x) {
+        Ok(y) => y,
+        Err(_) => B::from_fn(
             #[inline(always)]
             |i| x.lane(i),
         ),
@@ -476,11 +460,10 @@ pub(crate) fn recast_u<A: Uint, B: Uint>(x: A) -> B {
 /// [`recast`] of a mask. Masks of one size are full lanes of set or clear bits (a
 /// `k` register mask is smaller, and goes through its bits).
 #[inline(always)]
-pub(crate) fn recast_mask<A: LaneMask, B: LaneMask>(m: A) -> B {
-    // SAFETY: masks of one size are lanes of all-set or all-clear bits, in order.
-    match unsafe { same_bytes(&m) } {
-        Some(y) => y,
-        None => B::from_bits(m.bits()),
+pub(crate) fn recast_mask<A: LaneMask + Pod, B: LaneMask + Pod>(m: A) -> B {
+    match bytemuck::try_cast(m) {
+        Ok(y) => y,
+        Err(_) => B::from_bits(m.bits()),
     }
 }
 

@@ -310,6 +310,9 @@ impl std::ops::Deref for AlignedNodes {
 
     #[inline(always)]
     fn deref(&self) -> &[KdNode] {
+        // A pointer cast, not `bytemuck::cast_slice(&self.blocks)[..self.len]`: that
+        // cut's bounds check on every node load cost tile64 2-4% on camera rays
+        // (perf/log/overview.md).
         // SAFETY: `NodeBlock` is `repr(C)` holding exactly `[KdNode; 8]` (the const
         // assert above proves there is no padding), so `blocks` is `8 * blocks.len()`
         // initialized, contiguous `KdNode`s; `From` keeps `len <= 8 * blocks.len()`, and
