@@ -137,7 +137,7 @@ impl KdTree {
             let o = axes.org[axis];
             // Within `margin` of the plane, a triangle test can round a ray onto
             // either side of it.
-            let margin = axes.margin;
+            let margin = axes.margin[axis];
             if axes.zero[axis] {
                 let (left, right) = (empty & 1 == 0, empty & 2 == 0);
                 if o + margin < n.split {
@@ -353,7 +353,7 @@ impl Walk {
             axes: RayAxes {
                 org: [0.0; 4],
                 inv: [0.0; 4],
-                margin: 0.0,
+                margin: [0.0; 4],
                 lo_off: [0.0; 4],
                 hi_off: [0.0; 4],
                 negative: [0; 4],
@@ -372,8 +372,9 @@ impl Walk {
 pub(super) struct RayAxes {
     pub(super) org: [f32; 4],
     pub(super) inv: [f32; 4],
-    /// [`Bands::margin`].
-    margin: f32,
+    /// [`Bands::margin`] on every axis (one `f32` here shifted the lane walks' stacks
+    /// in memory and cost the streams about 1%, perf/log/overview.md).
+    margin: [f32; 4],
     /// [`Bands::lo_off`] and [`Bands::hi_off`].
     pub(super) lo_off: [f32; 4],
     pub(super) hi_off: [f32; 4],
@@ -390,7 +391,7 @@ impl RayAxes {
         RayAxes {
             org: four(org),
             inv: four(inv),
-            margin: bands.margin,
+            margin: [bands.margin; 4],
             lo_off: four(&bands.lo_off),
             hi_off: four(&bands.hi_off),
             negative: four(dir).map(|c| (c < 0.0) as u32),
