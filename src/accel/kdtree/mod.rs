@@ -15,9 +15,9 @@
 //! - the lane walk ([`traverse_lanes`]): one ray per SIMD lane, each on its own walk,
 //!   for streams ([`traverse_stream`]).
 //!
-//! All three start from one set-up (`traverse::Bands`, the plane bands, and
-//! `traverse::clip`, the box clip), written against [`crate::simd::Float`] for one ray
-//! or one per lane, and the SIMD walks hand the same rays to the scalar walk: those
+//! All three start from one set-up (`traverse::start`: the plane bands,
+//! `traverse::Bands`, and the box clip), written against [`crate::simd::Float`] for
+//! one ray or one per lane, and the SIMD walks hand the same rays to the scalar walk: those
 //! with a zero direction component, or one so small that a node step may overflow.
 //!
 //! Invariants, checked by [`KdTree::validate`]: every child pair lies inside `nodes` and

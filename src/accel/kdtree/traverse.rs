@@ -20,8 +20,8 @@
 //!   is then one number per ray, computed once. A wider margin only visits more cells,
 //!   never fewer.
 //! - A node step computes the band's two ends in `t` as `split * inv + off`, the
-//!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`Bands`, the
-//!   one set-up of every walk, as `clip` is the one box clip): a
+//!   offsets `-(org * inv) -+ slack` computed once per ray and axis (`Bands`, made
+//!   by `start`, the one set-up of every walk with the box clip): a
 //!   multiplication and an addition between the node's load and its decision. Its two
 //!   roundings stay within a quarter of the slack. The scalar walk computes it so on
 //!   every CPU; the packet, tile and lane walks fuse it where the instruction set has
@@ -84,23 +84,11 @@ impl KdTree {
     /// (or is not usable), and then there is nothing to walk.
     #[inline(always)]
     pub(super) fn start_walk(&self, ray: &Ray, walk: &mut Walk) -> bool {
-        if !ray.is_usable() {
-            return false;
-        }
         let inv_dir = Vec3::ONE / ray.dir;
-        let (org, dir, inv) = (ray.org.to_array(), ray.dir.to_array(), inv_dir.to_array());
-        let bands = Bands::new(&org, &inv, box_coord_max(&self.bounds));
-        let (reach, t_near, t_far) = clip(
-            &self.bounds,
-            [&org, &dir, &inv],
-            &bands,
-            (ray.t_min, ray.t_max),
-            true,
-        );
-        if !reach {
+        let Some((bands, t_near, t_far)) = start_ray(&self.bounds, ray, inv_dir) else {
             return false;
-        }
-        walk.axes = RayAxes::new(&org, &dir, &inv, &bands);
+        };
+        walk.axes = RayAxes::new(ray, inv_dir, &bands);
         walk.stack.clear();
         walk.node = 0;
         walk.t_near = t_near;
@@ -386,16 +374,17 @@ pub(super) struct RayAxes {
 
 impl RayAxes {
     #[inline(always)]
-    fn new(org: &[f32; 3], dir: &[f32; 3], inv: &[f32; 3], bands: &Bands<f32>) -> RayAxes {
-        let four = |v: &[f32; 3]| [v[0], v[1], v[2], 0.0];
+    fn new(ray: &Ray, inv_dir: Vec3, bands: &Bands<f32>) -> RayAxes {
+        let four = |v: [f32; 3]| [v[0], v[1], v[2], 0.0];
+        let d = four(ray.dir.to_array());
         RayAxes {
-            org: four(org),
-            inv: four(inv),
+            org: four(ray.org.to_array()),
+            inv: four(inv_dir.to_array()),
             margin: [bands.margin; 4],
-            lo_off: four(&bands.lo_off),
-            hi_off: four(&bands.hi_off),
-            negative: four(dir).map(|c| (c < 0.0) as u32),
-            zero: four(dir).map(|c| c == 0.0),
+            lo_off: four(bands.lo_off),
+            hi_off: four(bands.hi_off),
+            negative: d.map(|c| (c < 0.0) as u32),
+            zero: d.map(|c| c == 0.0),
         }
     }
 }
@@ -454,20 +443,21 @@ impl<F: Float> Bands<F> {
     }
 }
 
-/// `[t_min, t_max]` of the rays `[org, dir, inv]` (`inv = 1 / dir`) cut to the part
-/// inside `b` (the tree's box), widened by their bands' `margin`, for one ray (`F =
-/// f32`) or one per lane: the one box clip of every walk. The mask holds the rays of
-/// `live` that reach the box. The caller leaves rays that are not usable out of `live`
-/// (a NaN or infinite origin or direction component, or a zero direction): they miss
-/// every primitive anyway, and must not walk the whole tree to find that out.
+/// The one set-up of every walk, for one ray (`F = f32`, the scalar walk) or one per
+/// lane (the packet, tile and lane walks): the rays' [`Bands`], and `[t_min, t_max]`
+/// of the rays `[org, dir, inv]` (`inv = 1 / dir`) cut to the part inside `b` (the
+/// tree's box), widened by their bands' `margin`, with the mask of the rays of `live`
+/// that reach the box. The caller leaves rays that are not usable out of `live` (a NaN
+/// or infinite origin or direction component, or a zero direction): they miss every
+/// primitive anyway, and must not walk the whole tree to find that out.
 #[inline(always)]
-pub(super) fn clip<F: Float>(
+pub(super) fn start<F: Float>(
     b: &Aabb,
     [org, dir, inv]: [&[F; 3]; 3],
-    bands: &Bands<F>,
     (t_min, t_max): (F, F),
     live: F::Mask,
-) -> (F::Mask, F, F) {
+) -> (Bands<F>, (F::Mask, F, F)) {
+    let bands = Bands::new(org, inv, box_coord_max(b));
     let (splat, select) = (F::splat, F::select);
     let (mut t0, mut t1) = (t_min, t_max);
     let mut live = live;
@@ -493,21 +483,27 @@ pub(super) fn clip<F: Float>(
         t0 = select(parallel, t0, t0.max(t_lo - slack));
         t1 = select(parallel, t1, t1.min(t_hi + slack));
     }
-    (live & t0.cmp_le(t1), t0, t1)
+    (bands, (live & t0.cmp_le(t1), t0, t1))
 }
 
-/// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`]
-/// (`clip` for one ray). A ray with a NaN or infinite origin or direction component,
-/// a zero direction, or `!(t_min <= t_max)` gets `None`.
+/// [`start`] for one ray: its bands and its interval in `b`, `None` when the ray is not
+/// usable or misses `b`.
 #[inline(always)]
-pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
+fn start_ray(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(Bands<f32>, f32, f32)> {
     if !ray.is_usable() {
         return None;
     }
     let (org, dir, inv) = (ray.org.to_array(), ray.dir.to_array(), inv_dir.to_array());
-    let bands = Bands::new(&org, &inv, box_coord_max(b));
-    let (reach, t0, t1) = clip(b, [&org, &dir, &inv], &bands, (ray.t_min, ray.t_max), true);
-    reach.then_some((t0, t1))
+    let (bands, (reach, t0, t1)) = start(b, [&org, &dir, &inv], (ray.t_min, ray.t_max), true);
+    reach.then_some((bands, t0, t1))
+}
+
+/// `[t_min, t_max]` cut to the part of the ray inside `b`, widened by [`PLANE_SLACK`]
+/// (the interval of the walks' set-up). A ray with a NaN or infinite origin or
+/// direction component, a zero direction, or `!(t_min <= t_max)` gets `None`.
+#[inline(always)]
+pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
+    start_ray(b, ray, inv_dir).map(|(_, t0, t1)| (t0, t1))
 }
 
 /// The largest absolute coordinate of `b` on any axis. The triangle test's rounding

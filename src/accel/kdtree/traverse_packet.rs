@@ -9,8 +9,8 @@
 //!
 //! Invariants, so each lane returns exactly what the scalar traversal
 //! ([`super::traverse`]) returns for its ray:
-//! - Every lane is set up by the scalar path's own functions (`Bands`, `clip`, generic
-//!   over one lane or many), and every later per-lane quantity (the band's ends at the
+//! - Every lane is set up by the scalar path's own function (`start`, generic over one
+//!   lane or many), and every later per-lane quantity (the band's ends at the
 //!   split, the near/far decisions, the intervals pushed) is computed with the scalar
 //!   step's operations in its order, so a lane is active at exactly the nodes the scalar
 //!   ray visits, with the same interval, in the same front-to-back order. One
@@ -38,7 +38,7 @@
 
 use super::KdTree;
 use super::stats::bump;
-use super::traverse::{Bands, Stack, box_coord_max, clip};
+use super::traverse::{Bands, Stack, box_coord_max, start};
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::ray::Hit;
 use crate::simd::{
@@ -69,9 +69,9 @@ fn next_up<F: Float>(v: F) -> F {
 }
 
 impl KdTree {
-    /// The scalar walk's set-up of each lane of `rays` ([`Bands`], [`clip`]): the
-    /// bands, and the lanes of `active` that reach the tree's box with their intervals
-    /// (never a lane that is not usable, [`RayPacket::usable`]).
+    /// The scalar walk's set-up ([`start`]) of each lane of `rays`: the bands, and the
+    /// lanes of `active` that reach the tree's box with their intervals (never a lane
+    /// that is not usable, [`RayPacket::usable`]).
     #[allow(clippy::type_complexity)]
     #[inline(always)]
     pub(super) fn start_packet<W: Simd>(
@@ -79,15 +79,12 @@ impl KdTree {
         rays: &RayPacket<W>,
         active: Mask<W>,
     ) -> (Bands<Vf<W>>, (Mask<W>, Vf<W>, Vf<W>)) {
-        let bands = Bands::new(&rays.org, &rays.inv_dir, box_coord_max(&self.bounds));
-        let clipped = clip(
+        start(
             &self.bounds,
             [&rays.org, &rays.dir, &rays.inv_dir],
-            &bands,
             (rays.t_min, rays.t_max),
             active & rays.usable(),
-        );
-        (bands, clipped)
+        )
     }
 
     /// The lanes the SIMD walks leave to the scalar walk: those with a zero direction
@@ -172,50 +169,7 @@ impl KdTree {
     /// [`KdTree::intersect_packet`] at backend `W`, inside its entry.
     #[inline(always)]
     pub(super) fn intersect_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> HitPacket<W> {
-        let mut best = [HitPacket::miss()];
-        // Every lane is set up and clipped to the tree's box once; only those that reach
-        // it are grouped and walked.
-        let (bands, (reach, t_near, t_far)) = self.start_packet(rays, rays.active);
-        let alone = reach & self.scalar_lanes(bands.reach, &rays.inv_dir);
-        let (groups, count) = coherent_groups(rays, (reach & !alone).bits());
-        let mut alone_bits = alone.bits();
-        for &group in &groups[..count] {
-            if goes_scalar::<W>(group) {
-                alone_bits |= group;
-            } else {
-                let lanes = Mask::<W>::from_bits(group);
-                self.walk_groups::<W, 1, false>(
-                    #[inline(always)]
-                    |_| (rays, &bands),
-                    (0, [lanes], [t_near], [t_far]),
-                    &mut best,
-                    &mut [Mask::<W>::NONE],
-                );
-            }
-        }
-        let [mut best] = best;
-        if alone_bits != 0 {
-            let mut alone = [None; MAX_LANES];
-            while alone_bits != 0 {
-                let i = alone_bits.trailing_zeros() as usize;
-                alone_bits &= alone_bits - 1;
-                if let Some(ray) = rays.lane(i) {
-                    let mut hit = Hit::MISS;
-                    self.traverse::<false>(&ray, &mut hit);
-                    alone[i] = Some(hit);
-                }
-            }
-            let grouped = best;
-            best = HitPacket::from_lanes(
-                #[inline(always)]
-                |i| {
-                    alone[i].unwrap_or_else(
-                        #[inline(always)]
-                        || grouped.lane(i),
-                    )
-                },
-            );
-        }
+        let (mut best, _) = self.walk_packet::<W, false>(rays, rays.active, Mask::<W>::NONE);
         self.prims
             .intersect_planes_packet(rays, rays.active, &mut best);
         best
@@ -238,39 +192,74 @@ impl KdTree {
     #[inline(always)]
     pub(super) fn occluded_packet_in<W: Simd>(&self, rays: &RayPacket<W>) -> LaneBits {
         let by_plane = self.prims.planes_occlude_packet(rays, rays.active);
-        let mut unused = [HitPacket::miss()];
-        let (bands, (reach, t_near, t_far)) = self.start_packet(rays, rays.active & !by_plane);
-        let alone = reach & self.scalar_lanes(bands.reach, &rays.inv_dir);
-        let (groups, count) = coherent_groups(rays, (reach & !alone).bits());
-        let mut occluded = [by_plane];
-        let mut alone_bits = alone.bits();
+        let (_, occluded) = self.walk_packet::<W, true>(rays, rays.active & !by_plane, by_plane);
+        occluded.bits()
+    }
+
+    /// The lanes of `active` through the tree (planes aside): set up and clipped to the
+    /// tree's box once, then each coherent group of them walked as one group
+    /// ([`KdTree::walk_groups`]), and the lanes the SIMD walks leave to the scalar walk
+    /// ([`KdTree::scalar_lanes`]), with those of groups too small to pay
+    /// ([`goes_scalar`]), walked one by one. Closest hit: the hits, lanes outside
+    /// `active` missing. With `ANY_HIT`: `occluded` and the lanes that hit anything.
+    #[inline(always)]
+    fn walk_packet<W: Simd, const ANY_HIT: bool>(
+        &self,
+        rays: &RayPacket<W>,
+        active: Mask<W>,
+        occluded: Mask<W>,
+    ) -> (HitPacket<W>, Mask<W>) {
+        let mut best = [HitPacket::miss()];
+        let mut occluded = [occluded];
+        let (bands, (reach, t_near, t_far)) = self.start_packet(rays, active);
+        let to_scalar = reach & self.scalar_lanes(bands.reach, &rays.inv_dir);
+        let (groups, count) = coherent_groups(rays, (reach & !to_scalar).bits());
+        let mut scalar_bits = to_scalar.bits();
         for &group in &groups[..count] {
             if goes_scalar::<W>(group) {
-                alone_bits |= group;
+                scalar_bits |= group;
             } else {
                 let lanes = Mask::<W>::from_bits(group);
-                self.walk_groups::<W, 1, true>(
+                self.walk_groups::<W, 1, ANY_HIT>(
                     #[inline(always)]
                     |_| (rays, &bands),
                     (0, [lanes], [t_near], [t_far]),
-                    &mut unused,
+                    &mut best,
                     &mut occluded,
                 );
             }
         }
-        let mut occluded = occluded[0].bits();
-        while alone_bits != 0 {
-            let i = alone_bits.trailing_zeros() as usize;
-            alone_bits &= alone_bits - 1;
-            let mut unused = Hit::MISS;
-            if rays.lane(i).is_some_and(
-                #[inline(always)]
-                |ray| self.traverse::<true>(&ray, &mut unused),
-            ) {
-                occluded |= 1 << i;
+        let ([mut best], [mut occluded]) = (best, occluded);
+        if scalar_bits != 0 {
+            let mut alone = [None; MAX_LANES];
+            let mut hit_bits = 0;
+            while scalar_bits != 0 {
+                let i = scalar_bits.trailing_zeros() as usize;
+                scalar_bits &= scalar_bits - 1;
+                if let Some(ray) = rays.lane(i) {
+                    let mut hit = Hit::MISS;
+                    if self.traverse::<ANY_HIT>(&ray, &mut hit) {
+                        hit_bits |= 1 << i;
+                    }
+                    alone[i] = Some(hit);
+                }
+            }
+            if ANY_HIT {
+                occluded |= Mask::<W>::from_bits(hit_bits);
+            } else {
+                let grouped = best;
+                best = HitPacket::from_lanes(
+                    #[inline(always)]
+                    |i| {
+                        alone[i].unwrap_or_else(
+                            #[inline(always)]
+                            || grouped.lane(i),
+                        )
+                    },
+                );
             }
         }
-        occluded
+        (best, occluded)
     }
 
     /// The group walk: `G` packets (`groups(g)`, with their [`Bands`]) walk the tree
