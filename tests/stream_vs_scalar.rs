@@ -25,8 +25,8 @@ use raypack::accel::kdtree::KdTree;
 use raypack::ray::{Hit, Ray};
 use raypack::rayset::standard::standard_sets;
 use raypack::scene::generate::{self, Rng};
-use raypack::scene::{Aabb, Camera, Geometry, View};
-use raypack::simd::{Isa, W4, W8, W16};
+use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere, View};
+use raypack::simd::{Isa, Simd, W4, W8, W16};
 
 /// A hit that is no answer, written into the output first so a ray the stream kernel
 /// forgets shows up.
@@ -38,10 +38,27 @@ const POISON: Hit = Hit {
 };
 
 /// The kd-tree with its stream queries always on the lane walks at `width` lanes (4, 8
-/// or 16) in `groups` groups of lanes (1 or 2): the tree's own stream queries walk ray
-/// by ray when the tree is small, and most test trees are, use the native width only
-/// and two groups only in large trees.
-struct Lanes<'a>(&'a KdTree, usize, usize);
+/// or 16) in `Some(groups)` groups of lanes (1 or 2), or with `None` on its flat queries
+/// (a small scene's: every primitive tested, the triangles in lanes) at that width. The
+/// tree's own stream queries walk ray by ray when the tree is small, and most test
+/// trees are, use the native width only and two groups only in large trees.
+struct Lanes<'a>(&'a KdTree, usize, Option<usize>);
+
+impl Lanes<'_> {
+    fn hits<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
+        match self.2 {
+            Some(groups) => self.0.intersect_lanes_in::<W>(rays, hits, groups),
+            None => self.0.intersect_flat_in::<W>(rays, hits),
+        }
+    }
+
+    fn occluded<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
+        match self.2 {
+            Some(groups) => self.0.occluded_lanes_in::<W>(rays, occluded, groups),
+            None => self.0.occluded_flat_in::<W>(rays, occluded),
+        }
+    }
+}
 
 /// Every width of the lane walks, tested on every input.
 const WIDTHS: [usize; 3] = [4, 8, 16];
@@ -61,22 +78,22 @@ impl Accel for Lanes<'_> {
     }
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
         match self.1 {
-            4 => self.0.intersect_lanes_in::<W4>(rays, hits, self.2),
-            8 => self.0.intersect_lanes_in::<W8>(rays, hits, self.2),
-            _ => self.0.intersect_lanes_in::<W16>(rays, hits, self.2),
+            4 => self.hits::<W4>(rays, hits),
+            8 => self.hits::<W8>(rays, hits),
+            _ => self.hits::<W16>(rays, hits),
         }
     }
     fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
         match self.1 {
-            4 => self.0.occluded_lanes_in::<W4>(rays, occluded, self.2),
-            8 => self.0.occluded_lanes_in::<W8>(rays, occluded, self.2),
-            _ => self.0.occluded_lanes_in::<W16>(rays, occluded, self.2),
+            4 => Lanes::occluded::<W4>(self, rays, occluded),
+            8 => Lanes::occluded::<W8>(self, rays, occluded),
+            _ => Lanes::occluded::<W16>(self, rays, occluded),
         }
     }
 }
 
-/// Asserts the tree's stream queries, and its lane walks at every width, equal the
-/// scalar ones on `rays` ([`assert_stream_matches`]; the scalar answers are computed
+/// Asserts the tree's stream queries, and its lane walks (and flat queries, where the
+/// tree chose them) at every width, equal the scalar ones on `rays` ([`assert_stream_matches`]; the scalar answers are computed
 /// once). Returns the number of closest hits.
 fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize {
     let want = scalar_answers(tree, rays);
@@ -86,7 +103,11 @@ fn assert_tree_stream_matches(tree: &KdTree, rays: &[Ray], what: &str) -> usize 
         for w in WIDTHS {
             for g in GROUPS {
                 let how = format!("{what}, {isa}, {w} lanes, {g} groups");
-                assert_stream_gives(&Lanes(tree, w, g), rays, &want, &how);
+                assert_stream_gives(&Lanes(tree, w, Some(g)), rays, &want, &how);
+            }
+            if tree.is_flat() {
+                let how = format!("{what}, {isa}, flat, {w} lanes");
+                assert_stream_gives(&Lanes(tree, w, None), rays, &want, &how);
             }
         }
         closest = assert_stream_gives(tree, rays, &want, &format!("{what}, {isa}"));
@@ -333,7 +354,7 @@ fn empty_and_single_ray_batches() {
     let tree = KdTree::build(&g);
     let lanes: Vec<Lanes> = WIDTHS
         .iter()
-        .flat_map(|&w| GROUPS.map(|g| Lanes(&tree, w, g)))
+        .flat_map(|&w| GROUPS.map(|g| Lanes(&tree, w, Some(g))))
         .collect();
     let all: Vec<&dyn Accel> = std::iter::once(&tree as &dyn Accel)
         .chain(lanes.iter().map(|l| l as &dyn Accel))
@@ -419,6 +440,65 @@ fn stress_meshes() {
         50,
         "mixed primitives",
     );
+}
+
+/// Small scenes, whose trees choose the flat stream queries: a closed room seen from
+/// inside, a soup with exact duplicates (ties of equal `t`), and a soup with spheres,
+/// boxes and a plane beside its triangles (tested one by one after the lanes).
+#[test]
+fn small_scenes_flat_queries() {
+    let room = generate::closed_box(2);
+    let mut soup = generate::random_soup(60, 0.8, 5);
+    for t in 0..8 {
+        let [a, b, c] = soup.triangle(t * 7);
+        let i = soup.vertices.len() as u32;
+        soup.vertices.extend([a, b, c]);
+        soup.triangles.push([i, i + 1, i + 2]);
+    }
+    let mut mixed = generate::random_soup(40, 0.8, 6);
+    let mut rng = Rng::new(7);
+    for _ in 0..2 {
+        mixed.spheres.push(Sphere {
+            center: rng.point(Vec3::ZERO, Vec3::ONE),
+            radius: rng.range(0.02, 0.2),
+        });
+        let lo = rng.point(Vec3::ZERO, Vec3::ONE);
+        mixed
+            .boxes
+            .push(Aabb::new(lo, lo + rng.point(Vec3::ZERO, Vec3::splat(0.2))));
+    }
+    mixed.planes.push(Plane {
+        normal: Vec3::Y,
+        offset: -0.1,
+    });
+    let b = room.bounds();
+    let inside = Camera {
+        eye: b.min + (b.max - b.min) * Vec3::new(0.5, 0.5, 0.05),
+        target: b.min + (b.max - b.min) * Vec3::new(0.5, 0.5, 1.0),
+        up: Vec3::Y,
+        vfov_deg: 60.0,
+    };
+    for (g, camera, seed, what) in [
+        (&room, inside, 70, "small room"),
+        (
+            &soup,
+            looking_at(&soup, Vec3::new(0.3, 0.4, -1.0)),
+            80,
+            "small soup",
+        ),
+        (
+            &mixed,
+            looking_at(&mixed, Vec3::new(0.2, 0.5, -1.0)),
+            90,
+            "small mixed",
+        ),
+    ] {
+        assert!(
+            KdTree::build(g).is_flat(),
+            "{what}: the tree chose no flat queries"
+        );
+        check_geometry(g, &camera, seed, what);
+    }
 }
 
 #[test]

@@ -12,10 +12,41 @@
 //! bunny's diffuse streams (perf/log/stream.md, "Fifteenth session").
 
 use super::Prims;
-use super::triaccel::{exact_rule, max_abs};
+use super::triaccel::{TriAccel, exact_rule, max_abs};
 use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneMask, Simd, Uint, Vf, Vu, inl};
+use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Simd, Uint, Vf, Vu, inl};
+
+/// The most bounded primitives a scene may have for its stream queries to test every
+/// primitive instead of walking the tree (`KdTree::is_flat` decides below it).
+pub const FLAT_MAX_PRIMS: u32 = 128;
+
+/// Sixteen triangles' records transposed: `rows[r][c][lane]` is field `c` of row `r` of
+/// [`super::triaccel::TriAccel::rows`] for the triangle in slot `16 b + lane` of block
+/// `b`. A group of lanes then loads each field with one vector load instead of
+/// gathering it record by record (at 16 lanes the gather cost more than the test).
+/// Lanes past the last triangle repeat it.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct FlatBlock {
+    /// Field `c` of row `r` of each lane's record.
+    pub rows: [[[f32; MAX_LANES]; 4]; 3],
+}
+
+impl FlatBlock {
+    /// The blocks of `tris`, in slot order.
+    pub fn blocks(tris: &[TriAccel]) -> Vec<FlatBlock> {
+        tris.chunks(MAX_LANES)
+            .map(|run| FlatBlock {
+                rows: std::array::from_fn(|r| {
+                    std::array::from_fn(|c| {
+                        std::array::from_fn(|lane| run[lane.min(run.len() - 1)].rows()[r][c])
+                    })
+                }),
+            })
+            .collect()
+    }
+}
 
 impl Prims {
     /// Folds the triangles in slots `tris` (below `sphere_base`, at most `W::LANES`) into `best`
@@ -35,6 +66,64 @@ impl Prims {
         self.tris_lanes::<W, true>(tris, ray, &mut unused)
     }
 
+    /// Every bounded primitive against `ray`, folded into `best` as [`Prims::intersect_leaf`]
+    /// folds a leaf holding them all (or with `ANY_HIT` whether any is hit in
+    /// `(t_min, t_max)`): the triangles `W::LANES` at a time in lanes from
+    /// [`Prims::flat`] (which must hold them), the spheres and boxes one by one. The
+    /// flat stream queries of a small scene, which walk no tree.
+    #[inline(always)]
+    pub(crate) fn all_lanes<W: Simd, const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
+        let n = self.sphere_base as usize;
+        debug_assert!(self.flat.len() * MAX_LANES >= n);
+        let mut first = 0;
+        while first < n {
+            let (block, lane0) = (&self.flat[first / MAX_LANES], first % MAX_LANES);
+            let field = inl(
+                #[inline(always)]
+                |r: usize, c: usize| {
+                    Vf::<W>::from_fn(
+                        #[inline(always)]
+                        |i| block.rows[r][c][lane0 + i],
+                    )
+                },
+            );
+            let rows = [
+                [field(0, 0), field(0, 1), field(0, 2), field(0, 3)],
+                [field(1, 0), field(1, 1), field(1, 2), field(1, 3)],
+                [field(2, 0), field(2, 1), field(2, 2), field(2, 3)],
+            ];
+            let valid = W::all_bits() >> (W::LANES - (n - first).min(W::LANES));
+            let slot = inl(
+                #[inline(always)]
+                |i: usize| (first + i) as u32,
+            );
+            if self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best) {
+                return true;
+            }
+            first += W::LANES;
+        }
+        for slot in self.sphere_base..self.plane_base {
+            let limit = if ANY_HIT {
+                ray.t_max
+            } else {
+                best.t.next_up().min(ray.t_max)
+            };
+            if let Some(h) = self.intersect_prim(slot, ray, limit) {
+                if ANY_HIT {
+                    return true;
+                }
+                if Hit::is_closer(h.t, h.prim, best) {
+                    *best = h;
+                }
+            }
+        }
+        false
+    }
+
     /// [`Prims::intersect_tris_lanes`], or with `ANY_HIT` [`Prims::occludes_tris_lanes`]
     /// (the limit stays `t_max` and the first hit answers; `best` is left alone).
     #[inline(always)]
@@ -51,18 +140,41 @@ impl Prims {
             |i: usize| &self.tris[tris[i.min(n - 1)] as usize],
         );
         // The records' rows, transposed: field per vector, triangle per lane.
-        let [n_u, n_v, n_d, k_id] = Vf::<W>::from_rows4(
+        let row = inl(
             #[inline(always)]
-            |i| &rec(i).rows()[0],
+            |r: usize| {
+                Vf::<W>::from_rows4(
+                    #[inline(always)]
+                    |i| &rec(i).rows()[r],
+                )
+            },
         );
-        let [b_nu, b_nv, b_d, err] = Vf::<W>::from_rows4(
+        let rows = [row(0), row(1), row(2)];
+        let valid = W::all_bits() >> (W::LANES - n);
+        let slot = inl(
             #[inline(always)]
-            |i| &rec(i).rows()[1],
+            |i: usize| tris[i],
         );
-        let [c_nu, c_nv, c_d, mag] = Vf::<W>::from_rows4(
-            #[inline(always)]
-            |i| &rec(i).rows()[2],
-        );
+        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best)
+    }
+
+    /// The test and fold of [`Prims::tris_lanes`] on records already in lanes: `rows`
+    /// are [`TriAccel::rows`] transposed (field per vector, triangle per lane), lane `i`
+    /// valid where bit `i` of `valid` is set and holding the triangle in `slot(i)`.
+    #[inline(always)]
+    fn fold_tris_lanes<W: Simd, const ANY_HIT: bool>(
+        &self,
+        rows: [[Vf<W>; 4]; 3],
+        valid: LaneBits,
+        slot: impl Fn(usize) -> u32,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
+        let [
+            [n_u, n_v, n_d, k_id],
+            [b_nu, b_nv, b_d, err],
+            [c_nu, c_nv, c_d, mag],
+        ] = rows;
         let k = k_id.to_bits() & Vu::<W>::splat(3);
         let (k_gt0, k_gt1) = (k.cmp_gt(Vu::<W>::splat(0)), k.cmp_gt(Vu::<W>::splat(1)));
         let (m0, m1) = (!k_gt0, k_gt0 & !k_gt1);
@@ -106,7 +218,7 @@ impl Prims {
         // No early return when no lane is in range: on a diffuse ray's leaves that
         // branch goes either way, and its misses cost more than the barycentrics
         // (1.01x on the bunny, perf/log/stream.md).
-        let mut bits = keep.bits() & (W::all_bits() >> (W::LANES - n));
+        let mut bits = keep.bits() & valid;
         let (u, v, edge, bound) =
             lanes.barycentrics(t, ad, reach, [b_nu, b_nv, b_d], [c_nu, c_nv, c_d], err);
         bits &= edge.cmp_ge(-bound).bits();
@@ -119,7 +231,7 @@ impl Prims {
                 continue;
             }
             let (ei, bi) = (edge.lane(i), bound.lane(i));
-            let slot = tris[i] as usize;
+            let slot = slot(i) as usize;
             let hit = if ei >= bi {
                 (ti > ray.t_min && ti < limit).then(
                     #[inline(always)]

@@ -287,13 +287,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params.intersection_cost,
         params.empty_cut
     );
-    let total = s.node_bytes + s.leaf_bytes + s.index_bytes + s.triaccel_bytes;
+    outln!(
+        "stream queries   {}",
+        if tree.is_flat() {
+            "flat: every primitive tested, 16 triangles at a time (cheaper than the tree by the SAH)"
+        } else {
+            "kd-tree walks"
+        }
+    );
+    let total = s.node_bytes + s.leaf_bytes + s.index_bytes + s.triaccel_bytes + s.flat_bytes;
     let mut memory = std::collections::BTreeMap::new();
     for (name, key, bytes) in [
         ("nodes", "nodes", s.node_bytes),
         ("leaf table", "leaf_table", s.leaf_bytes),
         ("index lists", "index_lists", s.index_bytes),
         ("TriAccel", "triaccel", s.triaccel_bytes),
+        ("flat blocks", "flat_blocks", s.flat_bytes),
         ("total", "total", total),
     ] {
         outln!(

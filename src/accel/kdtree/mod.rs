@@ -85,6 +85,8 @@ pub struct TreeStats {
     pub index_bytes: usize,
     /// Bytes of the TriAccel records.
     pub triaccel_bytes: usize,
+    /// The flat stream queries' transposed records (none unless the tree chose them).
+    pub flat_bytes: usize,
 }
 
 impl KdTree {
@@ -132,6 +134,7 @@ impl KdTree {
             leaf_bytes: std::mem::size_of_val(self.leaves.as_slice()),
             index_bytes: std::mem::size_of_val(self.prim_indices.as_slice()),
             triaccel_bytes: std::mem::size_of_val(self.prims.tris.as_slice()),
+            flat_bytes: std::mem::size_of_val(self.prims.flat.as_slice()),
             ..TreeStats::default()
         };
         let root_area = self.bounds.surface_area() as f64;

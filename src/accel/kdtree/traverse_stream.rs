@@ -6,15 +6,31 @@
 //! in flight for each lane and decides all inner steps without a branch. perf/log/stream.md
 //! has the figures of each kernel tried.
 //!
+//! A scene of a few big triangles (a room, a Cornell box) defeats any tree: they
+//! overlap most of its cells, and a ray tests most of them anyway, one by one, after
+//! many steps. Where the SAH says so (`KdTree::choose_flat`), the stream queries of
+//! a scene of at most [`FLAT_MAX_PRIMS`] primitives test every one of them instead,
+//! sixteen triangles per vector op, from records stored transposed
+//! ([`crate::accel::triaccel_leaf::FlatBlock`]).
+//!
 //! A tree small enough to stay in the cache has no load latency to hide: below
 //! [`STREAM_MIN_NODES`] nodes the stream queries walk ray by ray. A tree far larger
 //! than the cache has more than one group of lanes can hide: from
 //! [`TWO_GROUPS_MIN_NODES`] nodes two groups step in turn.
 
 use super::KdTree;
+use super::build::BuildParams;
+use super::traverse::clip_to_box;
+use crate::accel::triaccel_leaf::{FLAT_MAX_PRIMS, FlatBlock};
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{Simd, by_width, dispatch, native_lanes};
+use crate::simd::{MAX_LANES, Simd, by_width, dispatch, native_lanes};
+use glam::Vec3;
+
+/// The cost of testing 16 triangles in lanes against one ray, in primitive tests
+/// (`K_I`) of the SAH: about 25 ns on Zen 4 with AVX-512 (a Cornell box's diffuse
+/// rays), where a scalar walk spends about 0.5 ns per unit of SAH cost.
+pub const FLAT_GROUP_TESTS: f32 = 4.0;
 
 /// Trees with fewer nodes answer streams ray by ray (perf/log/stream.md, "Small trees").
 pub const STREAM_MIN_NODES: usize = 8192;
@@ -35,6 +51,10 @@ impl KdTree {
     /// returns them, misses as [`Hit::MISS`]: lane walks at the native width, or ray by
     /// ray in a tree of fewer than [`STREAM_MIN_NODES`] nodes.
     pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
+        if self.is_flat() {
+            by_width!(native_lanes(), W => self.intersect_flat_in::<W>(rays, hits));
+            return;
+        }
         if self.nodes.len() < STREAM_MIN_NODES {
             intersect_each(self, rays, hits);
             return;
@@ -46,11 +66,97 @@ impl KdTree {
     /// [`crate::accel::Accel::occluded`] returns them, chosen as in
     /// [`KdTree::intersect_stream`].
     pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+        if self.is_flat() {
+            by_width!(native_lanes(), W => self.occluded_flat_in::<W>(rays, occluded));
+            return;
+        }
         if self.nodes.len() < STREAM_MIN_NODES {
             occluded_each(self, rays, occluded);
             return;
         }
         by_width!(native_lanes(), W => self.occluded_lanes::<W>(rays, occluded))
+    }
+
+    /// Whether the stream queries test every primitive instead of walking the tree
+    /// (chosen by `KdTree::choose_flat`).
+    pub fn is_flat(&self) -> bool {
+        !self.prims.flat.is_empty()
+    }
+
+    /// Makes the stream queries flat where that is cheaper than the tree by the SAH:
+    /// in a scene of at most [`FLAT_MAX_PRIMS`] bounded primitives, when the box
+    /// clip ([`BuildParams::traversal_cost`]), [`FLAT_GROUP_TESTS`] primitive tests per
+    /// group of 16 triangles and one per other primitive cost less than the tree's SAH
+    /// cost. Called once the tree is built.
+    pub(super) fn choose_flat(&mut self, params: &BuildParams) {
+        let p = &self.prims;
+        if p.sphere_base == 0 || p.plane_base > FLAT_MAX_PRIMS {
+            return;
+        }
+        let groups = p.sphere_base.div_ceil(MAX_LANES as u32) as f32;
+        let others = (p.plane_base - p.sphere_base) as f32;
+        let flat =
+            params.traversal_cost + params.intersection_cost * (FLAT_GROUP_TESTS * groups + others);
+        if (flat as f64) < self.stats(params).sah_cost {
+            self.prims.flat = FlatBlock::blocks(&self.prims.tris);
+        }
+    }
+
+    /// The flat closest-hit stream queries ([`KdTree::is_flat`] must hold) at width `W`
+    /// whatever the native width (tests run every width).
+    pub fn intersect_flat_in<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert!(
+            self.is_flat(),
+            "intersect_flat_in: the tree chose no flat queries"
+        );
+        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+        dispatch!(W::LANES; self.intersect_flat_as::<@>(rays, hits))
+    }
+
+    /// The flat any-hit stream queries at width `W`, as [`KdTree::intersect_flat_in`].
+    pub fn occluded_flat_in<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert!(
+            self.is_flat(),
+            "occluded_flat_in: the tree chose no flat queries"
+        );
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_stream: one answer per ray"
+        );
+        dispatch!(W::LANES; self.occluded_flat_as::<@>(rays, occluded))
+    }
+
+    /// The flat closest-hit stream at backend `W`, inside its entry: each ray's answer
+    /// is the scalar walk's, the closest hit over all primitives in [`Hit::is_closer`]'s
+    /// order.
+    #[inline(always)]
+    fn intersect_flat_as<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            let mut best = Hit::MISS;
+            if self.clips(ray) {
+                self.prims.all_lanes::<W, false>(ray, &mut best);
+            }
+            self.prims.intersect_planes(ray, &mut best);
+            *hit = if best.is_hit() { best } else { Hit::MISS };
+        }
+    }
+
+    /// The flat any-hit stream at backend `W`, inside its entry.
+    #[inline(always)]
+    fn occluded_flat_as<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
+        for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
+            let mut unused = Hit::MISS;
+            *o = self.prims.planes_occlude(ray)
+                || (self.clips(ray) && self.prims.all_lanes::<W, true>(ray, &mut unused));
+        }
+    }
+
+    /// Whether `ray` meets the tree's box as the walks' set-up clips it: where it does
+    /// not, the scalar walk finds nothing, and neither may the flat queries.
+    #[inline(always)]
+    fn clips(&self, ray: &Ray) -> bool {
+        clip_to_box(&self.bounds, ray, Vec3::ONE / ray.dir).is_some()
     }
 
     /// [`KdTree::intersect_stream`] through the lane walks at width `W` whatever the

@@ -424,14 +424,16 @@ impl KdTree {
             max_depth_limit: max_depth,
             builder: params.builder,
         };
-        KdTree {
+        let mut tree = KdTree {
             nodes,
             leaves,
             prim_indices,
             prims,
             bounds: cell,
             build_stats: stats,
-        }
+        };
+        tree.choose_flat(params);
+        tree
     }
 }
 
