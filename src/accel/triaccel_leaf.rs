@@ -79,6 +79,11 @@ impl Prims {
     ) -> bool {
         let n = self.sphere_base as usize;
         debug_assert!(self.flat.len() * MAX_LANES >= n);
+        let loosest = if ANY_HIT {
+            ray.t_max
+        } else {
+            best.t.next_up().min(ray.t_max)
+        };
         let mut first = 0;
         while first < n {
             let (block, lane0) = (&self.flat[first / MAX_LANES], first % MAX_LANES);
@@ -101,7 +106,7 @@ impl Prims {
                 #[inline(always)]
                 |i: usize| (first + i) as u32,
             );
-            if self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best) {
+            if self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, Some(loosest), best) {
                 return true;
             }
             first += W::LANES;
@@ -155,7 +160,7 @@ impl Prims {
             #[inline(always)]
             |i: usize| tris[i],
         );
-        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best)
+        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, None, best)
     }
 
     /// The test and fold of [`Prims::tris_lanes`] on records already in lanes: `rows`
@@ -168,6 +173,7 @@ impl Prims {
         valid: LaneBits,
         slot: impl Fn(usize) -> u32,
         ray: &Ray,
+        loosest: Option<f32>,
         best: &mut Hit,
     ) -> bool {
         let [
@@ -210,9 +216,13 @@ impl Prims {
                 }
             },
         );
-        let limit0 = limit_of(best);
         // The loosest limit of this leaf (limits only narrow): a lane failing here fails
-        // under every later limit too.
+        // under every later limit too. The flat queries give the one they started
+        // with, so no group's vector work waits for the fold of the group before.
+        let limit0 = loosest.unwrap_or_else(
+            #[inline(always)]
+            || limit_of(best),
+        );
         let keep =
             ((t - splat(limit0)) * ad).cmp_lt(slack) & ((splat(ray.t_min) - t) * ad).cmp_lt(slack);
         // No early return when no lane is in range: on a diffuse ray's leaves that
