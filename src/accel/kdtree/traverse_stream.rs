@@ -102,8 +102,9 @@ impl KdTree {
         }
     }
 
-    /// The flat closest-hit stream queries ([`KdTree::is_flat`] must hold) at width `W`
-    /// whatever the native width (tests run every width).
+    /// The flat closest-hit stream queries at width `W` whatever the native width (tests
+    /// run every width). Panics unless [`KdTree::is_flat`] holds, or when `hits` is not
+    /// as long as `rays`.
     pub fn intersect_flat_in<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
         assert!(
             self.is_flat(),
@@ -113,7 +114,8 @@ impl KdTree {
         dispatch!(W::LANES; self.intersect_flat_as::<@>(rays, hits))
     }
 
-    /// The flat any-hit stream queries at width `W`, as [`KdTree::intersect_flat_in`].
+    /// The flat any-hit stream queries at width `W`, as [`KdTree::intersect_flat_in`]
+    /// (and panicking as it does).
     pub fn occluded_flat_in<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
         assert!(
             self.is_flat(),
