@@ -20,12 +20,10 @@
 
 use super::KdTree;
 use super::build::BuildParams;
-use super::traverse::clip_to_box;
 use crate::accel::triaccel_leaf::{FLAT_MAX_PRIMS, FlatBlock};
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
 use crate::simd::{MAX_LANES, Simd, by_width, dispatch, native_lanes};
-use glam::Vec3;
 
 /// The cost of testing 16 triangles in lanes against one ray, in primitive tests
 /// (`K_I`) of the SAH: about 25 ns on Zen 4 with AVX-512 (a Cornell box's diffuse
@@ -84,13 +82,20 @@ impl KdTree {
     }
 
     /// Makes the stream queries flat where that is cheaper than the tree by the SAH:
-    /// in a scene of at most [`FLAT_MAX_PRIMS`] bounded primitives, when the box
-    /// clip ([`BuildParams::traversal_cost`]), [`FLAT_GROUP_TESTS`] primitive tests per
+    /// in a scene of at most [`FLAT_MAX_PRIMS`] bounded primitives, none of them
+    /// non-finite, when one step
+    /// ([`BuildParams::traversal_cost`]), [`FLAT_GROUP_TESTS`] primitive tests per
     /// group of 16 triangles and one per other primitive cost less than the tree's SAH
     /// cost. Called once the tree is built.
     pub(super) fn choose_flat(&mut self, params: &BuildParams) {
         let p = &self.prims;
         if p.sphere_base == 0 || p.plane_base > FLAT_MAX_PRIMS {
+            return;
+        }
+        // What the tree left out must be what no ray hits: degenerate triangles, not a
+        // non-finite sphere or box.
+        let degenerate = p.tris.iter().filter(|t| t.is_degenerate()).count() as u32;
+        if self.build_stats.tree_prims + degenerate != p.plane_base {
             return;
         }
         let groups = p.sphere_base.div_ceil(MAX_LANES as u32) as f32;
@@ -130,13 +135,15 @@ impl KdTree {
     }
 
     /// The flat closest-hit stream at backend `W`, inside its entry: each ray's answer
-    /// is the scalar walk's, the closest hit over all primitives in [`Hit::is_closer`]'s
-    /// order.
+    /// is the closest hit over all primitives in [`Hit::is_closer`]'s order, none for
+    /// an unusable ray: the brute-force oracle's answer ([`crate::accel::brute`]), which
+    /// the walks are tested to give. No box clip: it cost the Cornell box's streams a
+    /// fifth of their rate, and a ray it would reject hits nothing.
     #[inline(always)]
     fn intersect_flat_as<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
             let mut best = Hit::MISS;
-            if self.clips(ray) {
+            if ray.is_usable() {
                 self.prims.all_lanes::<W, false>(ray, &mut best);
             }
             self.prims.intersect_planes(ray, &mut best);
@@ -150,15 +157,8 @@ impl KdTree {
         for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
             let mut unused = Hit::MISS;
             *o = self.prims.planes_occlude(ray)
-                || (self.clips(ray) && self.prims.all_lanes::<W, true>(ray, &mut unused));
+                || (ray.is_usable() && self.prims.all_lanes::<W, true>(ray, &mut unused));
         }
-    }
-
-    /// Whether `ray` meets the tree's box as the walks' set-up clips it: where it does
-    /// not, the scalar walk finds nothing, and neither may the flat queries.
-    #[inline(always)]
-    fn clips(&self, ray: &Ray) -> bool {
-        clip_to_box(&self.bounds, ray, Vec3::ONE / ray.dir).is_some()
     }
 
     /// [`KdTree::intersect_stream`] through the lane walks at width `W` whatever the
