@@ -48,6 +48,18 @@ impl FlatBlock {
     }
 }
 
+/// The limit a hit must stay under for `best` to take it, as the scalar loops use it:
+/// `t_max` for an any-hit query, else just past `best.t` (an equal `t` may still win on
+/// id) within `t_max`.
+#[inline(always)]
+fn hit_limit<const ANY_HIT: bool>(ray: &Ray, best: &Hit) -> f32 {
+    if ANY_HIT {
+        ray.t_max
+    } else {
+        best.t.next_up().min(ray.t_max)
+    }
+}
+
 impl Prims {
     /// Folds the triangles in slots `tris` (below `sphere_base`, at most `W::LANES`) into `best`
     /// exactly as [`Prims::intersect_leaf`] does: for each in order, a hit under
@@ -79,11 +91,7 @@ impl Prims {
     ) -> bool {
         let n = self.sphere_base as usize;
         debug_assert!(self.flat.len() * MAX_LANES >= n);
-        let loosest = if ANY_HIT {
-            ray.t_max
-        } else {
-            best.t.next_up().min(ray.t_max)
-        };
+        let loosest = hit_limit::<ANY_HIT>(ray, best);
         let mut first = 0;
         while first < n {
             let (block, lane0) = (&self.flat[first / MAX_LANES], first % MAX_LANES);
@@ -112,12 +120,7 @@ impl Prims {
             first += W::LANES;
         }
         for slot in self.sphere_base..self.plane_base {
-            let limit = if ANY_HIT {
-                ray.t_max
-            } else {
-                best.t.next_up().min(ray.t_max)
-            };
-            if let Some(h) = self.intersect_prim(slot, ray, limit) {
+            if let Some(h) = self.intersect_prim(slot, ray, hit_limit::<ANY_HIT>(ray, best)) {
                 if ANY_HIT {
                     return true;
                 }
@@ -206,22 +209,12 @@ impl Prims {
             d_max: splat(max_abs(d)),
         };
         let (t, ad, reach, slack) = lanes.distance([n_u, n_v, n_d], mag);
-        let limit_of = inl(
-            #[inline(always)]
-            |best: &Hit| {
-                if ANY_HIT {
-                    ray.t_max
-                } else {
-                    best.t.next_up().min(ray.t_max)
-                }
-            },
-        );
         // The loosest limit of this leaf (limits only narrow): a lane failing here fails
         // under every later limit too. The flat queries give the one they started
         // with, so no group's vector work waits for the fold of the group before.
         let limit0 = loosest.unwrap_or_else(
             #[inline(always)]
-            || limit_of(best),
+            || hit_limit::<ANY_HIT>(ray, best),
         );
         let keep =
             ((t - splat(limit0)) * ad).cmp_lt(slack) & ((splat(ray.t_min) - t) * ad).cmp_lt(slack);
@@ -235,7 +228,7 @@ impl Prims {
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let limit = limit_of(best);
+            let limit = hit_limit::<ANY_HIT>(ray, best);
             let (ti, adi, si) = (t.lane(i), ad.lane(i), slack.lane(i));
             if !((ti - limit) * adi < si) {
                 continue;
