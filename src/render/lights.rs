@@ -214,6 +214,7 @@ impl Lights {
 
     /// True when rays that leave the scene bring light: the path tracer then samples the
     /// environment at each vertex ([`Lights::sample_environment`]).
+    #[inline(always)]
     pub fn has_environment(&self) -> bool {
         self.environment.max_element() > 0.0
     }
@@ -222,6 +223,7 @@ impl Lights {
     /// side the light arrives), cosine-weighted about `n` from a 2D point: the ideal
     /// density for a uniform sky over a Lambertian surface. Returns the direction and its
     /// density ([`Lights::environment_pdf`]).
+    #[inline(always)]
     pub fn sample_environment(&self, n: Vec3, (u1, u2): (f32, f32)) -> (Vec3, f32) {
         let wi = Onb::from_w(n)
             .to_world(cosine_hemisphere(u1, u2))
@@ -231,16 +233,19 @@ impl Lights {
 
     /// The solid-angle density with which [`Lights::sample_environment`] from a surface
     /// of normal `n` picks `wi`.
+    #[inline(always)]
     pub fn environment_pdf(&self, n: Vec3, wi: Vec3) -> f32 {
         wi.dot(n).max(0.0) * FRAC_1_PI
     }
 
     /// True when next-event estimation has nothing to sample.
+    #[inline(always)]
     pub fn is_empty(&self) -> bool {
         self.emitters.is_empty() || self.emitter_power <= 0.0
     }
 
     /// The emitter picked by uniform `u`.
+    #[inline(always)]
     fn pick(&self, u: f32) -> usize {
         self.cdf
             .partition_point(|&c| c <= u)
@@ -249,6 +254,7 @@ impl Lights {
 
     /// A light sample seen from `p` (three uniforms). `None` when there is no emitter or
     /// the sampled point emits nothing toward `p`.
+    #[inline(always)]
     pub fn sample(&self, p: Vec3, u: [f32; 3]) -> Option<LightSample> {
         if self.is_empty() {
             return None;
@@ -304,6 +310,7 @@ impl Lights {
 
     /// The density with which [`Lights::sample`] from `p` picks the point `q` on
     /// primitive `prim`, in solid angle; 0 when `prim` is not a sampled emitter.
+    #[inline(always)]
     pub fn pdf(&self, prim: u32, p: Vec3, q: Vec3) -> f32 {
         let Some(&i) = self.by_prim.get(&prim) else {
             return 0.0;

@@ -83,7 +83,9 @@ impl PathTracer<'_> {
     /// Takes `p` through the vertex where its current ray ends (`hit`, its closest hit):
     /// emission, the light samples, one BSDF sample and Russian roulette. Returns the
     /// light samples' shadow rays (counted), whose answers [`Path::resolve`] takes by
-    /// slot; the path is then done, or holds the next ray to trace.
+    /// slot; the path is then done, or holds the next ray to trace. Inlined whole into
+    /// the two loops that run it (the module [`super::gi`] says why).
+    #[inline(always)]
     fn advance(
         &self,
         p: &mut Path,

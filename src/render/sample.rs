@@ -70,7 +70,7 @@ impl Sampler {
     }
 
     /// A uniform in `[0, 1)`.
-    #[inline]
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         match self {
             Sampler::Independent(rng) => rng.next_f32(),
@@ -79,7 +79,7 @@ impl Sampler {
     }
 
     /// A point in `[0, 1)^2`.
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> (f32, f32) {
         match self {
             Sampler::Independent(rng) => {
@@ -92,7 +92,7 @@ impl Sampler {
 
     /// A discrete choice then a point on a square, as light and BSDF sampling take
     /// them: `[next_1d, next_2d]`.
-    #[inline]
+    #[inline(always)]
     pub fn next_choice_2d(&mut self) -> [f32; 3] {
         let c = self.next_1d();
         let (u, v) = self.next_2d();

@@ -574,6 +574,7 @@ impl<'a> Shader<'a> {
         }
     }
 
+    #[inline(always)]
     pub(super) fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'a> {
         let scene = self.scene;
         let p = ray.at(hit.t);
