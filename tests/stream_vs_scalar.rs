@@ -443,11 +443,20 @@ fn stress_meshes() {
 }
 
 /// Small scenes, whose trees choose the flat stream queries: a closed room seen from
-/// inside, a soup with exact duplicates (ties of equal `t`), and a soup with spheres,
-/// boxes and a plane beside its triangles (tested one by one after the lanes).
+/// inside (with two degenerate triangles the queries leave out), a soup with exact
+/// duplicates (ties of equal `t`), and a soup with spheres, boxes and a plane beside its
+/// triangles.
 #[test]
 fn small_scenes_flat_queries() {
-    let room = generate::closed_box(2);
+    let mut room = generate::closed_box(2);
+    let b = room.bounds();
+    let centre = (b.min + b.max) * 0.5;
+    let i = room.vertices.len() as u32;
+    // A zero-area sliver across the room and a triangle of one repeated corner.
+    room.vertices
+        .extend([b.min, centre, b.max, centre + Vec3::new(0.1, 0.0, 0.0)]);
+    room.triangles
+        .extend([[i, i + 1, i + 2], [i + 3, i + 3, i + 3]]);
     let mut soup = generate::random_soup(60, 0.8, 5);
     for t in 0..8 {
         let [a, b, c] = soup.triangle(t * 7);

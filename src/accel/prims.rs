@@ -9,7 +9,6 @@
 
 use crate::accel::occupancy::Meter;
 use crate::accel::triaccel::TriAccel;
-use crate::accel::triaccel_leaf::FlatBlock;
 use crate::geom::{Aabb, Geometry, Plane, Sphere};
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
@@ -42,9 +41,6 @@ pub struct Prims {
     pub box_base: u32,
     /// Id of the first plane (= number of bounded primitives).
     pub plane_base: u32,
-    /// The triangles' records transposed for the flat stream queries, when the tree
-    /// chose them for a small scene (`KdTree::is_flat`); empty otherwise.
-    pub flat: Vec<FlatBlock>,
 }
 
 impl Prims {
@@ -89,7 +85,6 @@ impl Prims {
             sphere_base,
             box_base,
             plane_base,
-            flat: Vec::new(),
         }
     }
 
@@ -112,9 +107,6 @@ impl Prims {
         } else {
             self.tris = order.iter().map(|&s| self.tris[s as usize]).collect();
             self.corners = order.iter().map(|&s| self.corners[s as usize]).collect();
-        }
-        if !self.flat.is_empty() {
-            self.flat = FlatBlock::blocks(&self.tris);
         }
     }
 

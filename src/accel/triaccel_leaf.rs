@@ -12,41 +12,10 @@
 //! bunny's diffuse streams (perf/log/stream.md, "Fifteenth session").
 
 use super::Prims;
-use super::triaccel::{TriAccel, exact_rule, max_abs};
+use super::triaccel::{exact_rule, max_abs};
 use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneBits, LaneMask, MAX_LANES, Simd, Uint, Vf, Vu, inl};
-
-/// The most bounded primitives a scene may have for its stream queries to test every
-/// primitive instead of walking the tree (`KdTree::is_flat` decides below it).
-pub const FLAT_MAX_PRIMS: u32 = 128;
-
-/// Sixteen triangles' records transposed: `rows[r][c][lane]` is field `c` of row `r` of
-/// [`super::triaccel::TriAccel::rows`] for the triangle in slot `16 b + lane` of block
-/// `b`. A group of lanes then loads each field with one vector load instead of
-/// gathering it record by record (at 16 lanes the gather cost more than the test).
-/// Lanes past the last triangle repeat it.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-pub struct FlatBlock {
-    /// Field `c` of row `r` of each lane's record.
-    pub rows: [[[f32; MAX_LANES]; 4]; 3],
-}
-
-impl FlatBlock {
-    /// The blocks of `tris`, in slot order.
-    pub fn blocks(tris: &[TriAccel]) -> Vec<FlatBlock> {
-        tris.chunks(MAX_LANES)
-            .map(|run| FlatBlock {
-                rows: std::array::from_fn(|r| {
-                    std::array::from_fn(|c| {
-                        std::array::from_fn(|lane| run[lane.min(run.len() - 1)].rows()[r][c])
-                    })
-                }),
-            })
-            .collect()
-    }
-}
+use crate::simd::{Float, LaneBits, LaneMask, Simd, Uint, Vf, Vu, inl};
 
 /// The limit a hit must stay under for `best` to take it, as the scalar loops use it:
 /// `t_max` for an any-hit query, else just past `best.t` (an equal `t` may still win on
@@ -76,60 +45,6 @@ impl Prims {
     pub fn occludes_tris_lanes<W: Simd>(&self, tris: &[u32], ray: &Ray) -> bool {
         let mut unused = Hit::MISS;
         self.tris_lanes::<W, true>(tris, ray, &mut unused)
-    }
-
-    /// Every bounded primitive against `ray`, folded into `best` as [`Prims::intersect_leaf`]
-    /// folds a leaf holding them all (or with `ANY_HIT` whether any is hit in
-    /// `(t_min, t_max)`): the triangles `W::LANES` at a time in lanes from
-    /// [`Prims::flat`] (which must hold them), the spheres and boxes one by one. The
-    /// flat stream queries of a small scene, which walk no tree.
-    #[inline(always)]
-    pub(crate) fn all_lanes<W: Simd, const ANY_HIT: bool>(
-        &self,
-        ray: &Ray,
-        best: &mut Hit,
-    ) -> bool {
-        let n = self.sphere_base as usize;
-        debug_assert!(self.flat.len() * MAX_LANES >= n);
-        let loosest = hit_limit::<ANY_HIT>(ray, best);
-        let mut first = 0;
-        while first < n {
-            let (block, lane0) = (&self.flat[first / MAX_LANES], first % MAX_LANES);
-            let field = inl(
-                #[inline(always)]
-                |r: usize, c: usize| {
-                    Vf::<W>::from_fn(
-                        #[inline(always)]
-                        |i| block.rows[r][c][lane0 + i],
-                    )
-                },
-            );
-            let rows = [
-                [field(0, 0), field(0, 1), field(0, 2), field(0, 3)],
-                [field(1, 0), field(1, 1), field(1, 2), field(1, 3)],
-                [field(2, 0), field(2, 1), field(2, 2), field(2, 3)],
-            ];
-            let valid = W::all_bits() >> (W::LANES - (n - first).min(W::LANES));
-            let slot = inl(
-                #[inline(always)]
-                |i: usize| (first + i) as u32,
-            );
-            if self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, Some(loosest), best) {
-                return true;
-            }
-            first += W::LANES;
-        }
-        for slot in self.sphere_base..self.plane_base {
-            if let Some(h) = self.intersect_prim(slot, ray, hit_limit::<ANY_HIT>(ray, best)) {
-                if ANY_HIT {
-                    return true;
-                }
-                if Hit::is_closer(h.t, h.prim, best) {
-                    *best = h;
-                }
-            }
-        }
-        false
     }
 
     /// [`Prims::intersect_tris_lanes`], or with `ANY_HIT` [`Prims::occludes_tris_lanes`]
@@ -163,11 +78,11 @@ impl Prims {
             #[inline(always)]
             |i: usize| tris[i],
         );
-        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, None, best)
+        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best)
     }
 
     /// The test and fold of [`Prims::tris_lanes`] on records already in lanes: `rows`
-    /// are [`TriAccel::rows`] transposed (field per vector, triangle per lane), lane `i`
+    /// are [`super::triaccel::TriAccel::rows`] transposed (field per vector, triangle per lane), lane `i`
     /// valid where bit `i` of `valid` is set and holding the triangle in `slot(i)`.
     #[inline(always)]
     fn fold_tris_lanes<W: Simd, const ANY_HIT: bool>(
@@ -176,7 +91,6 @@ impl Prims {
         valid: LaneBits,
         slot: impl Fn(usize) -> u32,
         ray: &Ray,
-        loosest: Option<f32>,
         best: &mut Hit,
     ) -> bool {
         let [
@@ -210,12 +124,8 @@ impl Prims {
         };
         let (t, ad, reach, slack) = lanes.distance([n_u, n_v, n_d], mag);
         // The loosest limit of this leaf (limits only narrow): a lane failing here fails
-        // under every later limit too. The flat queries give the one they started
-        // with, so no group's vector work waits for the fold of the group before.
-        let limit0 = loosest.unwrap_or_else(
-            #[inline(always)]
-            || hit_limit::<ANY_HIT>(ray, best),
-        );
+        // under every later limit too.
+        let limit0 = hit_limit::<ANY_HIT>(ray, best);
         let keep =
             ((t - splat(limit0)) * ad).cmp_lt(slack) & ((splat(ray.t_min) - t) * ad).cmp_lt(slack);
         // No early return when no lane is in range: on a diffuse ray's leaves that

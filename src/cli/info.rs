@@ -290,7 +290,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     outln!(
         "stream queries   {}",
         if tree.is_flat() {
-            "flat: every primitive tested, 16 triangles at a time (cheaper than the tree by the SAH)"
+            "flat: every primitive tested against packets of rays (cheaper than the tree by the SAH)"
         } else {
             "kd-tree walks"
         }
@@ -302,7 +302,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ("leaf table", "leaf_table", s.leaf_bytes),
         ("index lists", "index_lists", s.index_bytes),
         ("TriAccel", "triaccel", s.triaccel_bytes),
-        ("flat blocks", "flat_blocks", s.flat_bytes),
+        ("flat slots", "flat_slots", s.flat_bytes),
         ("total", "total", total),
     ] {
         outln!(

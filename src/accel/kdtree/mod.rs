@@ -53,6 +53,10 @@ pub struct KdTree {
     /// Bounds of the bounded primitives; rays are clipped to it before traversal.
     pub(crate) bounds: Aabb,
     pub(crate) build_stats: BuildStats,
+    /// The slots the flat stream queries test, in order: every bounded primitive but
+    /// the degenerate triangles no ray hits. Empty unless the tree chose them
+    /// ([`KdTree::is_flat`]).
+    pub(crate) flat: Vec<u32>,
 }
 
 /// Shape and cost figures of a built tree (`raypack info`).
@@ -85,7 +89,7 @@ pub struct TreeStats {
     pub index_bytes: usize,
     /// Bytes of the TriAccel records.
     pub triaccel_bytes: usize,
-    /// The flat stream queries' transposed records (none unless the tree chose them).
+    /// The flat stream queries' slot list (none unless the tree chose them).
     pub flat_bytes: usize,
 }
 
@@ -134,7 +138,7 @@ impl KdTree {
             leaf_bytes: std::mem::size_of_val(self.leaves.as_slice()),
             index_bytes: std::mem::size_of_val(self.prim_indices.as_slice()),
             triaccel_bytes: std::mem::size_of_val(self.prims.tris.as_slice()),
-            flat_bytes: std::mem::size_of_val(self.prims.flat.as_slice()),
+            flat_bytes: std::mem::size_of_val(self.flat.as_slice()),
             ..TreeStats::default()
         };
         let root_area = self.bounds.surface_area() as f64;

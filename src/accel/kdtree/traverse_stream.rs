@@ -9,9 +9,10 @@
 //! A scene of a few big triangles (a room, a Cornell box) defeats any tree: they
 //! overlap most of its cells, and a ray tests most of them anyway, one by one, after
 //! many steps. Where the SAH says so (`KdTree::choose_flat`), the stream queries of
-//! a scene of at most [`FLAT_MAX_PRIMS`] primitives test every one of them instead,
-//! sixteen triangles per vector op, from records stored transposed
-//! ([`crate::accel::triaccel_leaf::FlatBlock`]).
+//! a scene of at most [`FLAT_MAX_PRIMS`] primitives test every one of them instead:
+//! the stream goes in packets of the native width, and each primitive's record,
+//! loaded once, is tested against all the packet's rays (the packet walks' leaf
+//! kernel, `KdTree::leaf_groups`), with no traversal and no lane left idle.
 //!
 //! A tree small enough to stay in the cache has no load latency to hide: below
 //! [`STREAM_MIN_NODES`] nodes the stream queries walk ray by ray. A tree far larger
@@ -20,14 +21,21 @@
 
 use super::KdTree;
 use super::build::BuildParams;
-use crate::accel::triaccel_leaf::{FLAT_MAX_PRIMS, FlatBlock};
+use crate::accel::packet::{HitPacket, RayPacket};
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
-use crate::simd::{MAX_LANES, Simd, by_width, dispatch, native_lanes};
+use crate::simd::{LaneMask, MAX_LANES, Mask, Simd, by_width, dispatch, native_lanes};
 
-/// The cost of testing 16 triangles in lanes against one ray, in primitive tests
-/// (`K_I`) of the SAH: about 25 ns on Zen 4 with AVX-512 (a Cornell box's diffuse
-/// rays), where a scalar walk spends about 0.5 ns per unit of SAH cost.
+/// The most bounded primitives a scene may have for its stream queries to test every
+/// primitive instead of walking the tree (`KdTree::is_flat` decides below it).
+pub const FLAT_MAX_PRIMS: u32 = 128;
+
+/// The cost of the flat queries per 16 triangles and one ray, in primitive tests
+/// (`K_I`) of the SAH, where a scalar walk spends about 0.5 ns per unit: calibrated at
+/// about 25 ns when sixteen triangles went through one ray's lanes (perf/log/stream.md,
+/// "Flat queries"). Sixteen rays against each record do the same work in less time
+/// (the Cornell box's diffuse rays, 36 triangles: about 50 ns a ray), so the rule
+/// only errs toward the tree.
 pub const FLAT_GROUP_TESTS: f32 = 4.0;
 
 /// Trees with fewer nodes answer streams ray by ray (perf/log/stream.md, "Small trees").
@@ -78,7 +86,7 @@ impl KdTree {
     /// Whether the stream queries test every primitive instead of walking the tree
     /// (chosen by `KdTree::choose_flat`).
     pub fn is_flat(&self) -> bool {
-        !self.prims.flat.is_empty()
+        !self.flat.is_empty()
     }
 
     /// Makes the stream queries flat where that is cheaper than the tree by the SAH:
@@ -103,7 +111,9 @@ impl KdTree {
         let flat =
             params.traversal_cost + params.intersection_cost * (FLAT_GROUP_TESTS * groups + others);
         if (flat as f64) < self.stats(params).sah_cost {
-            self.prims.flat = FlatBlock::blocks(&self.prims.tris);
+            self.flat = (0..p.plane_base)
+                .filter(|&slot| slot >= p.sphere_base || !p.tris[slot as usize].is_degenerate())
+                .collect();
         }
     }
 
@@ -141,23 +151,42 @@ impl KdTree {
     /// fifth of their rate, and a ray it would reject hits nothing.
     #[inline(always)]
     fn intersect_flat_as<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
-        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-            let mut best = Hit::MISS;
-            if ray.is_usable() {
-                self.prims.all_lanes::<W, false>(ray, &mut best);
-            }
-            self.prims.intersect_planes(ray, &mut best);
-            *hit = if best.is_hit() { best } else { Hit::MISS };
+        for (chunk, out) in rays.chunks(W::LANES).zip(hits.chunks_mut(W::LANES)) {
+            let packet = RayPacket::<W>::from_rays(chunk);
+            let lanes = [packet.active & packet.usable()];
+            let mut best = [HitPacket::<W>::miss()];
+            let mut unused = [Mask::<W>::NONE];
+            self.leaf_groups::<W, 1, false>(
+                &self.flat,
+                |_| &packet,
+                &lanes,
+                &mut best,
+                &mut unused,
+            );
+            self.prims
+                .intersect_planes_packet(&packet, packet.active, &mut best[0]);
+            best[0].write(out);
         }
     }
 
-    /// The flat any-hit stream at backend `W`, inside its entry.
+    /// The flat any-hit stream at backend `W`, inside its entry: hit in `(t_min,
+    /// t_max)` by any primitive.
     #[inline(always)]
     fn occluded_flat_as<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
-        for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
-            let mut unused = Hit::MISS;
-            *o = self.prims.planes_occlude(ray)
-                || (ray.is_usable() && self.prims.all_lanes::<W, true>(ray, &mut unused));
+        for (chunk, out) in rays.chunks(W::LANES).zip(occluded.chunks_mut(W::LANES)) {
+            let packet = RayPacket::<W>::from_rays(chunk);
+            let lanes = [packet.active & packet.usable()];
+            let mut unused = [HitPacket::<W>::miss()];
+            let mut hit = [Mask::<W>::NONE];
+            self.leaf_groups::<W, 1, true>(&self.flat, |_| &packet, &lanes, &mut unused, &mut hit);
+            let hit = hit[0]
+                | self
+                    .prims
+                    .planes_occlude_packet(&packet, packet.active & !hit[0]);
+            let bits = hit.bits();
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = bits & (1 << i) != 0;
+            }
         }
     }
 

@@ -431,6 +431,7 @@ impl KdTree {
             prims,
             bounds: cell,
             build_stats: stats,
+            flat: Vec::new(),
         };
         tree.choose_flat(params);
         tree
