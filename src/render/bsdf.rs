@@ -102,6 +102,7 @@ fn mean(c: Vec3) -> f32 {
 impl Bsdf {
     /// The mixture for `material` with (textured) `albedo` at a surface whose geometric
     /// normal facing the ray is `n`; `entering` is false when the ray hit the back.
+    #[inline(always)]
     pub fn new(material: &Material, albedo: Vec3, n: Vec3, entering: bool) -> Bsdf {
         let m = material;
         let clamp = |x: f32| x.max(0.0);
@@ -161,6 +162,7 @@ impl Bsdf {
 
     /// `f(wo, wi)` of the non-delta lobes (`wo` points away from the surface, toward
     /// where the ray came from; `wi` toward the light).
+    #[inline(always)]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let cos_i = wi.dot(self.n);
         if cos_i <= 0.0 {
@@ -178,11 +180,13 @@ impl Bsdf {
     }
 
     /// The glossy lobe's microfacet distribution.
+    #[inline(always)]
     fn ggx(&self) -> Ggx {
         Ggx { alpha: self.alpha }
     }
 
     /// Solid-angle density with which [`Bsdf::sample`] picks `wi` by a non-delta lobe.
+    #[inline(always)]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let cos_i = wi.dot(self.n);
         let mut pdf = 0.0;
@@ -202,6 +206,7 @@ impl Bsdf {
     /// Draws a direction from three uniforms: `u[0]` picks the lobe, `u[1..]` the
     /// direction ([`super::sample::Sampler::next_choice_2d`]). `None`: the path is
     /// absorbed (a black material, or a Phong or GGX direction below the surface).
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3, [u0, u1, u2]: [f32; 3]) -> Option<BsdfSample> {
         let mut acc = 0.0;
         let mut lobe = LOBES;
@@ -263,6 +268,7 @@ impl Bsdf {
     }
 
     /// Samples lobe `lobe`, picked with probability `p`.
+    #[inline(always)]
     fn sample_lobe(&self, lobe: usize, wo: Vec3, u1: f32, u2: f32, p: f32) -> Option<BsdfSample> {
         let n = self.n;
         match lobe {
