@@ -15,7 +15,7 @@ use super::Prims;
 use super::triaccel::{exact_rule, max_abs};
 use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
-use crate::simd::{Float, LaneBits, LaneMask, Simd, Uint, Vf, Vu, inl};
+use crate::simd::{Float, LaneMask, Simd, Uint, Vf, Vu, inl};
 
 /// The limit a hit must stay under for `best` to take it, as the scalar loops use it:
 /// `t_max` for an any-hit query, else just past `best.t` (an equal `t` may still win on
@@ -72,32 +72,12 @@ impl Prims {
                 )
             },
         );
-        let rows = [row(0), row(1), row(2)];
-        let valid = W::all_bits() >> (W::LANES - n);
-        let slot = inl(
-            #[inline(always)]
-            |i: usize| tris[i],
-        );
-        self.fold_tris_lanes::<W, ANY_HIT>(rows, valid, slot, ray, best)
-    }
-
-    /// The test and fold of [`Prims::tris_lanes`] on records already in lanes: `rows`
-    /// are [`super::triaccel::TriAccel::rows`] transposed (field per vector, triangle per lane), lane `i`
-    /// valid where bit `i` of `valid` is set and holding the triangle in `slot(i)`.
-    #[inline(always)]
-    fn fold_tris_lanes<W: Simd, const ANY_HIT: bool>(
-        &self,
-        rows: [[Vf<W>; 4]; 3],
-        valid: LaneBits,
-        slot: impl Fn(usize) -> u32,
-        ray: &Ray,
-        best: &mut Hit,
-    ) -> bool {
         let [
             [n_u, n_v, n_d, k_id],
             [b_nu, b_nv, b_d, err],
             [c_nu, c_nv, c_d, mag],
-        ] = rows;
+        ] = [row(0), row(1), row(2)];
+        let valid = W::all_bits() >> (W::LANES - n);
         let k = k_id.to_bits() & Vu::<W>::splat(3);
         let (k_gt0, k_gt1) = (k.cmp_gt(Vu::<W>::splat(0)), k.cmp_gt(Vu::<W>::splat(1)));
         let (m0, m1) = (!k_gt0, k_gt0 & !k_gt1);
@@ -144,7 +124,7 @@ impl Prims {
                 continue;
             }
             let (ei, bi) = (edge.lane(i), bound.lane(i));
-            let slot = slot(i) as usize;
+            let slot = tris[i] as usize;
             let hit = if ei >= bi {
                 (ti > ray.t_min && ti < limit).then(
                     #[inline(always)]

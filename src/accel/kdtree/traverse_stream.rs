@@ -100,10 +100,12 @@ impl KdTree {
         if p.sphere_base == 0 || p.plane_base > FLAT_MAX_PRIMS {
             return;
         }
+        let slots: Vec<u32> = (0..p.plane_base)
+            .filter(|&slot| slot >= p.sphere_base || !p.tris[slot as usize].is_degenerate())
+            .collect();
         // What the tree left out must be what no ray hits: degenerate triangles, not a
         // non-finite sphere or box.
-        let degenerate = p.tris.iter().filter(|t| t.is_degenerate()).count() as u32;
-        if self.build_stats.tree_prims + degenerate != p.plane_base {
+        if self.build_stats.tree_prims != slots.len() as u32 {
             return;
         }
         let groups = p.sphere_base.div_ceil(MAX_LANES as u32) as f32;
@@ -111,9 +113,7 @@ impl KdTree {
         let flat =
             params.traversal_cost + params.intersection_cost * (FLAT_GROUP_TESTS * groups + others);
         if (flat as f64) < self.stats(params).sah_cost {
-            self.flat = (0..p.plane_base)
-                .filter(|&slot| slot >= p.sphere_base || !p.tris[slot as usize].is_degenerate())
-                .collect();
+            self.flat = slots;
         }
     }
 
