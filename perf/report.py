@@ -781,7 +781,7 @@ def section_build(builds, have_embree, cfg, quick_flag):
             "`--build-threads T`, taken right after raypack's." if have_embree else "") +
         " *Tree memory* is raypack's whole tree (`raypack info`'s `memory total`: nodes, "
         "leaf table, index lists, TriAccel records and, where a small scene's stream "
-        "queries are flat, its transposed records), also per triangle of the scene. "
+        "queries are flat, the list of primitives they test), also per triangle of the scene. "
         "*Serial part* is the share of the build's work done while fewer than both "
         "threads worked, in the 2-thread builds (`--occupancy`: the build marks which "
         "threads work when, src/accel/occupancy.rs), and *Amdahl 16* the speedup on 16 "
