@@ -22,7 +22,7 @@
 //! `KdTree::step` for its ray operation by operation (the band's ends at the split,
 //! the near/far tests, the empty-child skips, the intervals and the pushes on the
 //! lane's own stack), so it visits the scalar ray's leaves with its intervals in its
-//! order; leaves, pops and the best-hit test run the scalar code itself. One exception:
+//! order (any-hit walks far child first, as the scalar step); leaves, pops and the best-hit test run the scalar code itself. One exception:
 //! where the instruction set has FMA the band's ends round once, not twice
 //! ([`Float::mul_add_fast`]; 1.03x on the streams, perf/log/stream.md). Both stay within
 //! the plane slack, so a lane may visit a cell more or fewer at a band's edge but
@@ -238,13 +238,20 @@ impl<W: Simd> PlaneTests<W> {
             | (self.both & self.near_empty & (self.far_empty | past_best))
     }
 
-    /// A step that goes on goes to the far child (else to the near one).
+    /// A step that goes on goes to the far child (else to the near one). A walk that
+    /// takes the far child first (`FAR_FIRST`, any-hit walks: [`KdTree::step`]) goes
+    /// there also where it pushes the near one.
     #[inline(always)]
-    fn to_far(&self) -> Mask<W> {
-        self.far_only | (self.both & self.near_empty)
+    fn to_far<const FAR_FIRST: bool>(&self) -> Mask<W> {
+        let to_far = self.far_only | (self.both & self.near_empty);
+        if FAR_FIRST {
+            to_far | self.pushes()
+        } else {
+            to_far
+        }
     }
 
-    /// The step pushes the far child.
+    /// The step pushes the child it does not take first.
     #[inline(always)]
     fn pushes(&self) -> Mask<W> {
         self.both & !self.near_empty & !self.far_empty
@@ -252,16 +259,31 @@ impl<W: Simd> PlaneTests<W> {
 
     /// The intervals after the step, in the `moving` lanes.
     #[inline(always)]
-    fn intervals(&self, moving: Mask<W>, (t_near, t_far): (Vf<W>, Vf<W>)) -> (Vf<W>, Vf<W>) {
+    fn intervals<const FAR_FIRST: bool>(
+        &self,
+        moving: Mask<W>,
+        (t_near, t_far): (Vf<W>, Vf<W>),
+    ) -> (Vf<W>, Vf<W>) {
         let select = Vf::<W>::select;
+        let far_of_both = if FAR_FIRST {
+            self.both & (self.near_empty | !self.far_empty)
+        } else {
+            self.both & self.near_empty
+        };
         (
-            select(moving & self.both & self.near_empty, self.entry, t_near),
+            select(moving & far_of_both, self.entry, t_near),
             select(
-                moving & self.both & !self.near_empty,
-                self.hi.min_lt(t_far),
+                moving & self.both & !far_of_both,
+                self.near_exit(t_far),
                 t_far,
             ),
         )
+    }
+
+    /// Where the ray leaves the near child.
+    #[inline(always)]
+    fn near_exit(&self, t_far: Vf<W>) -> Vf<W> {
+        self.hi.min_lt(t_far)
     }
 }
 
@@ -400,7 +422,7 @@ impl KdTree {
                 continue;
             }
             if !(g.starts.base..g.starts.end).contains(&r) {
-                self.start_block::<W>(&mut g.starts, rays, r);
+                self.start_block::<W, ANY_HIT>(&mut g.starts, rays, r);
             }
             let (s, k) = (&g.starts, r - g.starts.base);
             match s.begin[k] {
@@ -436,16 +458,26 @@ impl KdTree {
     /// Out of line (a block starts once per `W::LANES` rays), compiled for `W`'s
     /// instruction set ([`Simd::enter`]).
     #[inline(always)]
-    fn start_block<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
+    fn start_block<W: Simd, const ANY_HIT: bool>(
+        &self,
+        s: &mut Starts,
+        rays: &[Ray],
+        first: usize,
+    ) {
         W::enter(
             #[inline(always)]
-            || self.start_block_in::<W>(s, rays, first),
+            || self.start_block_in::<W, ANY_HIT>(s, rays, first),
         )
     }
 
     /// [`KdTree::start_block`]'s body.
     #[inline(always)]
-    fn start_block_in<W: Simd>(&self, s: &mut Starts, rays: &[Ray], first: usize) {
+    fn start_block_in<W: Simd, const ANY_HIT: bool>(
+        &self,
+        s: &mut Starts,
+        rays: &[Ray],
+        first: usize,
+    ) {
         let block = &rays[first..rays.len().min(first + W::LANES)];
         let p = RayPacket::<W>::from_rays(block);
         let (bands, (reach, t_near, t_far)) = self.start_packet(&p, p.active);
@@ -476,7 +508,7 @@ impl KdTree {
             lo_off,
             hi_off,
         };
-        self.descend_block::<W>(s, walk, (t_near, t_far), &axes);
+        self.descend_block::<W, ANY_HIT>(s, walk, (t_near, t_far), &axes);
     }
 
     /// The first steps of the rays in `walk`, taken together from the root while every
@@ -491,7 +523,7 @@ impl KdTree {
     /// the root, and `s` gets them at the shared node.
     /// Out of line, compiled for `W`'s instruction set ([`Simd::enter`]).
     #[inline(always)]
-    fn descend_block<W: Simd>(
+    fn descend_block<W: Simd, const ANY_HIT: bool>(
         &self,
         s: &mut Starts,
         walk: Mask<W>,
@@ -500,13 +532,13 @@ impl KdTree {
     ) {
         W::enter(
             #[inline(always)]
-            || self.descend_block_in::<W>(s, walk, interval, axes),
+            || self.descend_block_in::<W, ANY_HIT>(s, walk, interval, axes),
         )
     }
 
     /// [`KdTree::descend_block`]'s body.
     #[inline(always)]
-    fn descend_block_in<W: Simd>(
+    fn descend_block_in<W: Simd, const ANY_HIT: bool>(
         &self,
         s: &mut Starts,
         walk: Mask<W>,
@@ -537,19 +569,25 @@ impl KdTree {
             );
             // No hit yet, so no far child lies past the best one.
             let stop = p.stop(Mask::<W>::NONE);
-            let to_far = p.to_far();
+            let to_far = p.to_far::<ANY_HIT>();
             let right = ((to_far & !p.negative) | (!to_far & p.negative)).bits() & all;
             if stop.bits() & all != 0 || (right != 0 && right != all) {
                 break;
             }
-            let far = inl(
+            let child = inl(
                 #[inline(always)]
-                |i: usize| n.children() + (p.negative.bits() >> i & 1 == 0) as u32,
+                |i: usize, far: bool| {
+                    n.children() + ((p.negative.bits() >> i & 1 == 0) == far) as u32
+                },
             );
             for i in lanes_of((walk & p.pushes()).bits()) {
-                s.stacks[i].push((far(i), p.entry.lane(i), t_far.lane(i)));
+                s.stacks[i].push(if ANY_HIT {
+                    (child(i, false), t_near.lane(i), p.near_exit(t_far).lane(i))
+                } else {
+                    (child(i, true), p.entry.lane(i), t_far.lane(i))
+                });
             }
-            (t_near, t_far) = p.intervals(walk, (t_near, t_far));
+            (t_near, t_far) = p.intervals::<ANY_HIT>(walk, (t_near, t_far));
             node = n.children() + (right != 0) as u32;
             steps += 1;
             bump(
@@ -613,19 +651,22 @@ impl KdTree {
         let push = (inner & p.pushes()).bits();
         let moving = inner & !stop;
         let next_node = Vu::<W>::select(
-            moving & p.to_far(),
+            moving & p.to_far::<ANY_HIT>(),
             far,
             Vu::<W>::select(moving, near, node),
         );
-        let (new_near, new_far) = p.intervals(moving, (t_near, t_far));
+        let (new_near, new_far) = p.intervals::<ANY_HIT>(moving, (t_near, t_far));
         bump(
             #[inline(always)]
             |c| c.node_steps += inner.bits().count_ones() as u64,
         );
+        let near_exit = p.near_exit(t_far);
         for i in lanes_of(push) {
-            g.walks[i]
-                .stack
-                .push((far.lane(i), entry.lane(i), t_far.lane(i)));
+            g.walks[i].stack.push(if ANY_HIT {
+                (near.lane(i), t_near.lane(i), near_exit.lane(i))
+            } else {
+                (far.lane(i), entry.lane(i), t_far.lane(i))
+            });
         }
         for (i, x) in st.node.iter_mut().enumerate().take(W::LANES) {
             *x = next_node.lane(i);
@@ -797,11 +838,11 @@ mod tests {
     }
 
     /// [`KdTree::start_block`] sets up every ray as [`KdTree::start_walk`] does, bit for
-    /// bit, and sends to the scalar walk exactly the rays with a direction component
+    /// bit (closest-hit and any-hit walks, which order the children differently), and sends to the scalar walk exactly the rays with a direction component
     /// whose inverse may overflow the node step; a walking ray starts at the block's
     /// shared node with the interval and stack its scalar walk has after as many steps.
     #[inline(always)]
-    fn blocks_match_scalar<W: Simd>() {
+    fn blocks_match_scalar<W: Simd, const ANY_HIT: bool>() {
         let g = random_soup(500, 0.2, 11);
         let tree = KdTree::build(&g);
         let mut rng = Rng::new(W::LANES as u64);
@@ -810,7 +851,7 @@ mod tests {
         let mut s = Starts::new();
         let (mut walks, mut scalar, mut shared) = (0, 0, 0);
         for first in (0..rays.len()).step_by(W::LANES - 1) {
-            tree.start_block::<W>(&mut s, &rays, first);
+            tree.start_block::<W, ANY_HIT>(&mut s, &rays, first);
             for (k, ray) in rays[s.base..s.end].iter().enumerate() {
                 let mut w = Walk::new();
                 let reaches = tree.start_walk(ray, &mut w);
@@ -831,7 +872,7 @@ mod tests {
                             let at = tree.nodes[w.node as usize];
                             assert!(!at.is_leaf(), "{what}: shared steps end before a leaf");
                             let mut best = Hit::MISS;
-                            assert_eq!(tree.step::<false>(&mut w, ray, &mut best), None);
+                            assert_eq!(tree.step::<ANY_HIT>(&mut w, ray, &mut best), None);
                         }
                         shared += s.steps;
                         assert_eq!(w.node, s.node, "{what}: node after {} steps", s.steps);
@@ -877,8 +918,11 @@ mod tests {
 
     #[test]
     fn blocks_match_scalar_at_every_width() {
-        blocks_match_scalar::<W4>();
-        blocks_match_scalar::<W8>();
-        blocks_match_scalar::<W16>();
+        blocks_match_scalar::<W4, false>();
+        blocks_match_scalar::<W8, false>();
+        blocks_match_scalar::<W16, false>();
+        blocks_match_scalar::<W4, true>();
+        blocks_match_scalar::<W8, true>();
+        blocks_match_scalar::<W16, true>();
     }
 }

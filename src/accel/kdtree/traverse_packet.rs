@@ -4,7 +4,8 @@
 //!
 //! At an inner node every lane computes where it crosses the split plane; the packet
 //! goes near-only, far-only, or near now and far later for all its lanes at once, with a
-//! stack of `(node, lanes, t_near, t_far)` whose intervals are SIMD registers. A lane
+//! stack of `(node, lanes, t_near, t_far)` whose intervals are SIMD registers (any-hit
+//! walks: far now and near later, as the scalar step, `KdTree::step`). A lane
 //! rides along masked off where its own interval does not reach the node.
 //!
 //! Invariants, so each lane returns exactly what the scalar traversal
@@ -442,6 +443,23 @@ impl KdTree {
                             }
                         }
                     }
+                } else if ANY_HIT {
+                    // Far child first, as the scalar any-hit walk ([`KdTree::step`]).
+                    stack.push(Entry {
+                        node: near,
+                        lanes: near_lanes,
+                        t_near,
+                        t_far: array_fn(
+                            #[inline(always)]
+                            |g| hi[g].min_lt(t_far[g]),
+                        ),
+                    });
+                    node = far;
+                    lanes = far_lanes;
+                    t_near = array_fn(
+                        #[inline(always)]
+                        |g| lo[g].max_gt(t_near[g]),
+                    );
                 } else {
                     stack.push(Entry {
                         node: far,
