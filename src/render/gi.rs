@@ -373,14 +373,13 @@ impl<'a> GiScene<'a> {
 }
 
 /// Environment samples per path vertex ([`GiScene::environment_queries`]), each with
-/// its own shadow ray. Under a sky most of the noise is the sky's visibility at each
-/// vertex, which more shadow rays average down, and those rays are cheap: any-hit walks
-/// meet a blocker from the far end (`KdTree::step`), and the vertex's BSDF sample, its
-/// closest hit and the path behind it are paid once for all of them. `sponza_sky`, 64
-/// spp, 2 threads (perf/gi.md, "Four sky samples per vertex"): MSE 4.74e-5, 3.47e-5 and
-/// 2.53e-5 with 1, 2 and 4 samples, for 1.15x and 1.38x the time of one: 1.18x and
-/// 1.36x the efficiency.
-pub const ENVIRONMENT_SAMPLES: usize = 4;
+/// its own shadow ray. One: more average the sky's visibility down, but they also move
+/// the MIS weights toward the sky samples, and where the surroundings are about as
+/// bright as half the sky (terrain, a lone model) the bounce ray's escape-or-hit outcome
+/// then swings more than the extra rays save. Four samples (perf/gi.md, "Tried and not
+/// kept"): `sponza_sky` 1.36x as efficient; a terrain under the sky 1.47x the variance
+/// for 1.75x the time, a statue 1.37x for 1.5x.
+pub const ENVIRONMENT_SAMPLES: usize = 1;
 
 /// A light sample's shadow ray and the radiance it brings if nothing blocks it.
 #[derive(Clone, Copy, Debug)]
