@@ -317,69 +317,55 @@ impl<'a> GiScene<'a> {
         })
     }
 
-    /// Next-event estimation of the environment at `h` for outgoing `wo`:
-    /// [`ENVIRONMENT_SAMPLES`] directions from [`Lights::sample_environment`], each with
-    /// its shadow ray to infinity and `f cos L / (n pdf)`, weighted by the power
-    /// heuristic against BSDF sampling with the sample count in it (Veach's `n_i`:
-    /// `n pdf` against the BSDF's density). Draws that many 2D points when the scene has
-    /// an environment ([`Lights::has_environment`]), nothing otherwise; a sample is
-    /// `None` when it brings nothing whatever its ray meets.
+    /// Next-event estimation of the environment at `h` for outgoing `wo`: a direction
+    /// from [`Lights::sample_environment`], its shadow ray to infinity, and
+    /// `f cos L / pdf` weighted by the power heuristic against BSDF sampling. Draws a 2D
+    /// point when the scene has an environment ([`Lights::has_environment`]), nothing
+    /// otherwise; `None` when the sample brings nothing whatever the ray meets. One
+    /// sample per vertex: four made Sponza under a sky more efficient but open scenes
+    /// under it noisier, since they shift the MIS weights toward the sky (perf/gi.md,
+    /// "Tried and not kept").
     #[inline(always)]
-    pub fn environment_queries(
+    pub fn environment_query(
         &self,
         h: &GiHit,
         wo: Vec3,
         sampler: &mut Sampler,
-    ) -> [Option<ShadowQuery>; ENVIRONMENT_SAMPLES] {
-        let mut queries = [None; ENVIRONMENT_SAMPLES];
+    ) -> Option<ShadowQuery> {
         if !self.lights.has_environment() {
-            return queries;
+            return None;
         }
-        let n = ENVIRONMENT_SAMPLES as f32;
-        for q in &mut queries {
-            let u = sampler.next_2d();
-            if !h.bsdf.has_smooth() {
-                continue;
-            }
-            let (wi, pdf) = self.lights.sample_environment(h.n, u);
-            let f = h.bsdf.eval(wo, wi) * wi.dot(h.n).max(0.0);
-            if f == Vec3::ZERO || !(pdf > 0.0) {
-                continue;
-            }
-            let w = super::bsdf::power_heuristic(n * pdf, h.bsdf.pdf(wo, wi));
-            *q = Some(ShadowQuery {
-                ray: Ray::new(h.p + h.n * h.epsilon, wi, 0.0, f32::INFINITY),
-                value: f * self.lights.environment * (w / (n * pdf)),
-                point_light: false,
-            });
+        let u = sampler.next_2d();
+        if !h.bsdf.has_smooth() {
+            return None;
         }
-        queries
+        let (wi, pdf) = self.lights.sample_environment(h.n, u);
+        let f = h.bsdf.eval(wo, wi) * wi.dot(h.n).max(0.0);
+        if f == Vec3::ZERO || !(pdf > 0.0) {
+            return None;
+        }
+        let w = super::bsdf::power_heuristic(pdf, h.bsdf.pdf(wo, wi));
+        Some(ShadowQuery {
+            ray: Ray::new(h.p + h.n * h.epsilon, wi, 0.0, f32::INFINITY),
+            value: f * self.lights.environment * (w / pdf),
+            point_light: false,
+        })
     }
 
     /// The weight of environment light found by a BSDF sample of density `bsdf_pdf`
     /// (`None` after a delta lobe or for a camera ray) leaving a surface of normal `n`
-    /// along `wi`: the power heuristic against [`GiScene::environment_queries`], or 1 when
+    /// along `wi`: the power heuristic against [`GiScene::environment_query`], or 1 when
     /// that strategy could not have found it.
     #[inline(always)]
     pub fn environment_weight(&self, bsdf_pdf: Option<f32>, n: Vec3, wi: Vec3) -> f32 {
         match bsdf_pdf {
             Some(pdf) if self.lights.has_environment() => {
-                let env_pdf = self.lights.environment_pdf(n, wi);
-                super::bsdf::power_heuristic(pdf, ENVIRONMENT_SAMPLES as f32 * env_pdf)
+                super::bsdf::power_heuristic(pdf, self.lights.environment_pdf(n, wi))
             }
             _ => 1.0,
         }
     }
 }
-
-/// Environment samples per path vertex ([`GiScene::environment_queries`]), each with
-/// its own shadow ray. One: more average the sky's visibility down, but they also move
-/// the MIS weights toward the sky samples, and where the surroundings are about as
-/// bright as half the sky (terrain, a lone model) the bounce ray's escape-or-hit outcome
-/// then swings more than the extra rays save. Four samples (perf/gi.md, "Tried and not
-/// kept"): `sponza_sky` 1.36x as efficient; a terrain under the sky 1.47x the variance
-/// for 1.75x the time, a statue 1.37x for 1.5x.
-pub const ENVIRONMENT_SAMPLES: usize = 1;
 
 /// A light sample's shadow ray and the radiance it brings if nothing blocks it.
 #[derive(Clone, Copy, Debug)]

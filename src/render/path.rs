@@ -1,8 +1,7 @@
 //! render: unidirectional path tracing with next-event estimation.
 //!
 //! At every vertex with a non-delta lobe one emitter sample is taken ([`GiScene::direct`]),
-//! and [`ENVIRONMENT_SAMPLES`] environment samples when the scene has a sky
-//! ([`GiScene::environment_queries`]);
+//! and one environment sample when the scene has a sky ([`GiScene::environment_query`]);
 //! the path continues by sampling the BSDF ([`super::bsdf`]). Emission found by a BSDF
 //! sample (an emitter, or the sky where the path escapes) is weighted against the
 //! light-sampling density by the power heuristic (Veach 1997), so each light path is
@@ -13,7 +12,7 @@
 //! sampling at vertex `k` makes a path of `k + 1` bounces).
 //!
 //! Numbers drawn per vertex, in order ([`Sampler`]): a choice and a 2D point for the light
-//! sample, a 2D point for each environment sample (with a sky only), a choice and a 2D
+//! sample, a 2D point for the environment sample (with a sky only), a choice and a 2D
 //! point for the BSDF sample, one value for Russian roulette.
 //!
 //! Paths are traced one vertex at a time (`PathTracer::advance`), either alone
@@ -24,9 +23,7 @@
 //! to its radiance in the same order either way, so both give the same bits.
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
-use super::gi::{
-    ENVIRONMENT_SAMPLES, GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives,
-};
+use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
 use super::sample::Sampler;
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
@@ -52,15 +49,12 @@ struct Path {
     vertex: u32,
     /// Direct light waiting for its shadow rays (the emitter's, the environment's): the
     /// throughput at its vertex and the radiance the sample brings if unoccluded.
-    waiting: [Option<(Vec3, Vec3)>; SLOTS],
+    waiting: [Option<(Vec3, Vec3)>; 2],
     alive: bool,
 }
 
-/// Shadow rays per vertex: the emitter sample's, then the environment's.
-const SLOTS: usize = 1 + ENVIRONMENT_SAMPLES;
-
 /// The shadow rays of one vertex: the emitter sample's, then the environment's.
-type Queries = [Option<ShadowQuery>; SLOTS];
+type Queries = [Option<ShadowQuery>; 2];
 
 impl Path {
     /// A path starting with camera ray `ray`.
@@ -72,7 +66,7 @@ impl Path {
             bsdf_pdf: None,
             from_normal: Vec3::ZERO,
             vertex: 0,
-            waiting: [None; SLOTS],
+            waiting: [None; 2],
             alive: true,
         }
     }
@@ -104,7 +98,7 @@ impl PathTracer<'_> {
             let w = g.environment_weight(p.bsdf_pdf, p.from_normal, p.seg.ray.dir);
             p.l += p.beta * g.lights.environment * w;
             p.alive = false;
-            return [None; SLOTS];
+            return [None; 2];
         };
         let le = g.emitted(&h);
         if le != Vec3::ZERO {
@@ -119,19 +113,19 @@ impl PathTracer<'_> {
         }
         if g.max_bounces.is_some_and(|m| p.vertex >= m) {
             p.alive = false;
-            return [None; SLOTS];
+            return [None; 2];
         }
         let wo = -p.seg.ray.dir;
-        let mut queries = [None; SLOTS];
-        queries[0] = g.direct_query(&h, wo, sampler, true);
-        queries[1..].copy_from_slice(&g.environment_queries(&h, wo, sampler));
-        if queries[0].is_none() {
-            p.l += p.beta * Vec3::ZERO;
+        let queries = [
+            g.direct_query(&h, wo, sampler, true),
+            g.environment_query(&h, wo, sampler),
+        ];
+        match queries[0] {
+            Some(q) => p.waiting[0] = Some((p.beta, q.value)),
+            None => p.l += p.beta * Vec3::ZERO,
         }
-        for (waiting, q) in p.waiting.iter_mut().zip(&queries) {
-            if let Some(q) = q {
-                *waiting = Some((p.beta, q.value));
-            }
+        if let Some(q) = queries[1] {
+            p.waiting[1] = Some((p.beta, q.value));
         }
         counts.shadow += queries.iter().flatten().count() as u64;
         let Some(s) = h.bsdf.sample(wo, sampler.next_choice_2d()) else {

@@ -22,8 +22,9 @@
 //! `KdTree::step` for its ray operation by operation (the band's ends at the split,
 //! the near/far tests, the empty-child skips, the intervals and the pushes on the
 //! lane's own stack), so it visits the scalar ray's leaves with its intervals in its
-//! order (any-hit walks far child first, as the scalar step); leaves, pops and the best-hit test run the scalar code itself. One exception:
-//! where the instruction set has FMA the band's ends round once, not twice
+//! order (any-hit walks far child first, as the scalar step); leaves, pops and the
+//! best-hit test run the scalar code itself. One exception: where the instruction set
+//! has FMA the band's ends round once, not twice
 //! ([`Float::mul_add_fast`]; 1.03x on the streams, perf/log/stream.md). Both stay within
 //! the plane slack, so a lane may visit a cell more or fewer at a band's edge but
 //! finds the same hit (`super::traverse`'s notes). A ray with a zero direction
@@ -838,8 +839,9 @@ mod tests {
     }
 
     /// [`KdTree::start_block`] sets up every ray as [`KdTree::start_walk`] does, bit for
-    /// bit (closest-hit and any-hit walks, which order the children differently), and sends to the scalar walk exactly the rays with a direction component
-    /// whose inverse may overflow the node step; a walking ray starts at the block's
+    /// bit (closest-hit and any-hit walks, which order the children differently), and
+    /// sends to the scalar walk exactly the rays with a direction component whose
+    /// inverse may overflow the node step; a walking ray starts at the block's
     /// shared node with the interval and stack its scalar walk has after as many steps.
     #[inline(always)]
     fn blocks_match_scalar<W: Simd, const ANY_HIT: bool>() {
