@@ -29,6 +29,15 @@ use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
 
+/// How many hits ahead of the one it shades the wavefront asks for a hit's surface
+/// records (half as far for its vertices' normals, which need the triangle first).
+const PREFETCH_AHEAD: usize = 16;
+
+/// Scenes with fewer triangles keep their surface records in cache, where asking
+/// ahead only costs instructions (the Cornell box's 64-spp render: 2-7% slower with
+/// it, `sponza_sky`'s 8% faster).
+const PREFETCH_MIN_TRIANGLES: usize = 1 << 14;
+
 /// The path tracer over a prepared scene.
 pub struct PathTracer<'a> {
     pub scene: GiScene<'a>,
@@ -228,6 +237,7 @@ impl Integrator for PathTracer<'_> {
         let mut live: Vec<usize> = (0..paths.len()).collect();
         let mut hits = first.to_vec();
         let mut camera_vertex = true;
+        let prefetch = self.scene.shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
         // The generation's shadow rays, the paths (and slots) they belong to and their
         // answers.
         let (mut owners, mut shadow_rays, mut point_light) = (Vec::new(), Vec::new(), Vec::new());
@@ -237,7 +247,16 @@ impl Integrator for PathTracer<'_> {
             owners.clear();
             shadow_rays.clear();
             point_light.clear();
-            for (&i, h) in live.iter().zip(&hits) {
+            let shader = &self.scene.shader;
+            for (k, (&i, h)) in live.iter().zip(&hits).enumerate() {
+                if prefetch {
+                    if let Some(ahead) = hits.get(k + PREFETCH_AHEAD) {
+                        shader.prefetch_surface(ahead);
+                    }
+                    if let Some(ahead) = hits.get(k + PREFETCH_AHEAD / 2) {
+                        shader.prefetch_vertices(ahead);
+                    }
+                }
                 let hit = h.is_hit().then_some(*h);
                 let queries = self.advance(&mut paths[i], hit, &mut samplers[i], counts);
                 for (slot, q) in queries.iter().enumerate() {

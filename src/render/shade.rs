@@ -52,6 +52,7 @@ use super::sample::{Pcg32, sample_cone, stratified};
 use crate::accel::{Accel, Mode};
 use crate::ray::{Hit, NO_HIT, Ray};
 use crate::scene::{Light, Material, PrimRef, Scene, Sphere};
+use crate::simd::prefetch;
 use glam::{Vec2, Vec3};
 
 /// What a primary ray saw, compared between neighbouring pixels by adaptive
@@ -571,6 +572,41 @@ impl<'a> Shader<'a> {
         match refract(d, s.ns, eta) {
             Some(t) if t.dot(s.ng) < 0.0 => Some(t),
             _ => refract(d, s.ng, eta),
+        }
+    }
+
+    /// Asks for the records [`Shader::surface`] reads for `hit` (its geometric normal,
+    /// material index and triangle) ahead of time: a wavefront shades hits scattered
+    /// over the scene, and each of those reads is a cache miss otherwise.
+    #[inline(always)]
+    pub(super) fn prefetch_surface(&self, hit: &Hit) {
+        let i = hit.prim as usize;
+        let scene = self.scene;
+        if let Some(n) = self.triangle_normals.get(i) {
+            prefetch(n);
+        }
+        if let Some(m) = scene.prim_material.get(i) {
+            prefetch(m);
+        }
+        if let Some(t) = scene.geometry.triangles.get(i) {
+            prefetch(t);
+        }
+    }
+
+    /// The second step of [`Shader::prefetch_surface`], once `hit`'s triangle is in
+    /// cache: its vertices' shading normals.
+    #[inline(always)]
+    pub(super) fn prefetch_vertices(&self, hit: &Hit) {
+        let scene = self.scene;
+        if let (Some(tri), false) = (
+            scene.geometry.triangles.get(hit.prim as usize),
+            scene.normals.is_empty(),
+        ) {
+            for &v in tri {
+                if let Some(n) = scene.normals.get(v as usize) {
+                    prefetch(n);
+                }
+            }
         }
     }
 
