@@ -27,6 +27,7 @@ use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
 use super::sample::Sampler;
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
+use crate::simd::scalar_entry;
 use glam::Vec3;
 
 /// How many hits ahead of the one it shades the wavefront asks for a hit's surface
@@ -158,6 +159,7 @@ impl PathTracer<'_> {
     /// a point light) into `occluded`. In a packet mode the camera vertex's rays toward
     /// point lights go as packets of the mode's width, in path order (neighbouring pixels,
     /// so nearly one direction); every other ray goes in one stream.
+    #[inline(always)]
     fn shadows(
         &self,
         mode: Mode,
@@ -175,8 +177,10 @@ impl PathTracer<'_> {
             occluded_unrelated(accel, mode, rays, occluded);
             return;
         }
-        let (packed, loose): (Vec<usize>, Vec<usize>) =
-            (0..rays.len()).partition(|&i| point_light[i]);
+        let (mut packed, mut loose) = (Vec::new(), Vec::new());
+        for (i, &p) in point_light.iter().enumerate() {
+            if p { &mut packed } else { &mut loose }.push(i);
+        }
         for group in packed.chunks(packet.packet_size()) {
             counts.shadow_packets += 1;
             let group_rays: Vec<Ray> = group.iter().map(|&i| rays[i]).collect();
@@ -223,6 +227,10 @@ impl Integrator for PathTracer<'_> {
         }
     }
 
+    /// Traces a batch of paths generation by generation (every live path's vertex,
+    /// then the generation's shadow rays and bounce rays, each as one query), inside
+    /// the instruction set's entry (`scalar_entry`): the vertex is scalar code, 6%
+    /// faster on `spheres` in VEX form, and the same bits under every set.
     fn radiance_batch(
         &self,
         rays: &[Ray],
@@ -231,61 +239,67 @@ impl Integrator for PathTracer<'_> {
         mode: Mode,
         counts: &mut GiCounts,
     ) -> Vec<Vec3> {
-        let accel = self.scene.shader.accel;
-        let mut paths: Vec<Path> = rays.iter().map(|r| Path::new(*r)).collect();
-        // Live paths and the closest hits of their current rays, in the same order.
-        let mut live: Vec<usize> = (0..paths.len()).collect();
-        let mut hits = first.to_vec();
-        let mut camera_vertex = true;
-        let prefetch = self.scene.shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
-        // The generation's shadow rays, the paths (and slots) they belong to and their
-        // answers.
-        let (mut owners, mut shadow_rays, mut point_light) = (Vec::new(), Vec::new(), Vec::new());
-        let mut occluded = Vec::new();
-        let mut bounce_rays = Vec::new();
-        while !live.is_empty() {
-            owners.clear();
-            shadow_rays.clear();
-            point_light.clear();
-            let shader = &self.scene.shader;
-            for (k, (&i, h)) in live.iter().zip(&hits).enumerate() {
-                if prefetch {
-                    if let Some(ahead) = hits.get(k + PREFETCH_AHEAD) {
-                        shader.prefetch_surface(ahead);
+        scalar_entry(
+            #[inline(always)]
+            || {
+                let accel = self.scene.shader.accel;
+                let mut paths: Vec<Path> = rays.iter().map(|r| Path::new(*r)).collect();
+                // Live paths and the closest hits of their current rays, in the same order.
+                let mut live: Vec<usize> = (0..paths.len()).collect();
+                let mut hits = first.to_vec();
+                let mut camera_vertex = true;
+                let prefetch = self.scene.shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
+                // The generation's shadow rays, the paths (and slots) they belong to and their
+                // answers.
+                let (mut owners, mut shadow_rays, mut point_light) =
+                    (Vec::new(), Vec::new(), Vec::new());
+                let mut occluded = Vec::new();
+                let mut bounce_rays = Vec::new();
+                while !live.is_empty() {
+                    owners.clear();
+                    shadow_rays.clear();
+                    point_light.clear();
+                    let shader = &self.scene.shader;
+                    for (k, (&i, h)) in live.iter().zip(&hits).enumerate() {
+                        if prefetch {
+                            if let Some(ahead) = hits.get(k + PREFETCH_AHEAD) {
+                                shader.prefetch_surface(ahead);
+                            }
+                            if let Some(ahead) = hits.get(k + PREFETCH_AHEAD / 2) {
+                                shader.prefetch_vertices(ahead);
+                            }
+                        }
+                        let hit = h.is_hit().then_some(*h);
+                        let queries = self.advance(&mut paths[i], hit, &mut samplers[i], counts);
+                        for (slot, q) in queries.iter().enumerate() {
+                            if let Some(q) = q {
+                                owners.push((i, slot));
+                                shadow_rays.push(q.ray);
+                                point_light.push(q.point_light);
+                            }
+                        }
                     }
-                    if let Some(ahead) = hits.get(k + PREFETCH_AHEAD / 2) {
-                        shader.prefetch_vertices(ahead);
+                    self.shadows(
+                        mode,
+                        camera_vertex,
+                        &shadow_rays,
+                        &point_light,
+                        &mut occluded,
+                        counts,
+                    );
+                    for (&(i, slot), &o) in owners.iter().zip(&occluded) {
+                        paths[i].resolve(slot, o);
                     }
+                    live.retain(|&i| paths[i].alive);
+                    bounce_rays.clear();
+                    bounce_rays.extend(live.iter().map(|&i| paths[i].seg.ray));
+                    hits.clear();
+                    hits.resize(bounce_rays.len(), Hit::MISS);
+                    intersect_unrelated(accel, mode, &bounce_rays, &mut hits);
+                    camera_vertex = false;
                 }
-                let hit = h.is_hit().then_some(*h);
-                let queries = self.advance(&mut paths[i], hit, &mut samplers[i], counts);
-                for (slot, q) in queries.iter().enumerate() {
-                    if let Some(q) = q {
-                        owners.push((i, slot));
-                        shadow_rays.push(q.ray);
-                        point_light.push(q.point_light);
-                    }
-                }
-            }
-            self.shadows(
-                mode,
-                camera_vertex,
-                &shadow_rays,
-                &point_light,
-                &mut occluded,
-                counts,
-            );
-            for (&(i, slot), &o) in owners.iter().zip(&occluded) {
-                paths[i].resolve(slot, o);
-            }
-            live.retain(|&i| paths[i].alive);
-            bounce_rays.clear();
-            bounce_rays.extend(live.iter().map(|&i| paths[i].seg.ray));
-            hits.clear();
-            hits.resize(bounce_rays.len(), Hit::MISS);
-            intersect_unrelated(accel, mode, &bounce_rays, &mut hits);
-            camera_vertex = false;
-        }
-        paths.iter().map(|p| p.l).collect()
+                paths.iter().map(|p| p.l).collect()
+            },
+        )
     }
 }
