@@ -158,42 +158,21 @@ impl<'a> Rays<'a> {
 
     /// Rays `first..first + len` into `out`; false when one of them breaks a rule of
     /// [`Rays::bad_ray`] (checked here, on rays already in cache, not in a pass of its
-    /// own, on the floats' exponent bits so that the check vectorises).
+    /// own).
     fn fill(&self, first: usize, out: &mut Vec<Ray>, len: usize) -> bool {
-        let span = first..first + len;
-        let (org, dir) = (&self.org[span.clone()], &self.dir[span.clone()]);
-        let per_ray = |t: &'a [f32]| {
-            if t.len() == 1 {
-                None
-            } else {
-                Some(&t[span.clone()])
-            }
-        };
-        let (t0s, t1s) = (per_ray(self.t_min), per_ray(self.t_max));
         out.clear();
-        out.extend((0..len).map(|i| {
-            let t0 = t0s.map_or(self.t_min[0], |t| t[i]);
-            let t1 = t1s.map_or(self.t_max[0], |t| t[i]);
-            Ray::new(Vec3::from_array(org[i]), Vec3::from_array(dir[i]), t0, t1)
+        out.extend((first..first + len).map(|i| {
+            let (t0, t1) = self.t(i);
+            Ray::new(
+                Vec3::from_array(self.org[i]),
+                Vec3::from_array(self.dir[i]),
+                t0,
+                t1,
+            )
         }));
-        // A float is finite when its exponent bits are not all set; NaN is the only
-        // value with those bits set and a non-zero mantissa.
-        const EXP: u32 = 0x7f80_0000;
-        let inf_or_nan = |x: f32| (x.to_bits() & EXP == EXP) as u32;
-        let nan = |x: f32| (x.to_bits() & 0x7fff_ffff > EXP) as u32;
-        let bad = out.iter().fold(0u32, |acc, r| {
-            let [a, b, c] = r.org.to_array();
-            let [d, e, f] = r.dir.to_array();
-            acc | inf_or_nan(a)
-                | inf_or_nan(b)
-                | inf_or_nan(c)
-                | inf_or_nan(d)
-                | inf_or_nan(e)
-                | inf_or_nan(f)
-                | inf_or_nan(r.t_min)
-                | nan(r.t_max)
-        });
-        bad == 0
+        out.iter().fold(true, |ok, r| {
+            ok & r.org.is_finite() & r.dir.is_finite() & r.t_min.is_finite() & !r.t_max.is_nan()
+        })
     }
 }
 
@@ -244,6 +223,7 @@ impl HitArrays {
             v[i] = h.v;
             prim[i] = if h.is_hit() { h.prim as i64 } else { -1 };
         }
+        // A miss keeps the zero normal the arrays start with ([`HitArrays::of`]).
         for ((h, r), n) in hits.iter().zip(rays).zip(normal.as_chunks_mut::<3>().0) {
             if h.is_hit() {
                 *n = scene.normal(h.prim, r, h.t).to_array();

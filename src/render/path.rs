@@ -248,7 +248,8 @@ impl Integrator for PathTracer<'_> {
                 let mut live: Vec<usize> = (0..paths.len()).collect();
                 let mut hits = first.to_vec();
                 let mut camera_vertex = true;
-                let prefetch = self.scene.shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
+                let shader = &self.scene.shader;
+                let prefetch = shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
                 // The generation's shadow rays, the paths (and slots) they belong to and their
                 // answers.
                 let (mut owners, mut shadow_rays, mut point_light) =
@@ -259,7 +260,6 @@ impl Integrator for PathTracer<'_> {
                     owners.clear();
                     shadow_rays.clear();
                     point_light.clear();
-                    let shader = &self.scene.shader;
                     for (k, (&i, h)) in live.iter().zip(&hits).enumerate() {
                         if prefetch {
                             if let Some(ahead) = hits.get(k + PREFETCH_AHEAD) {

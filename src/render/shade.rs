@@ -598,10 +598,10 @@ impl<'a> Shader<'a> {
     #[inline(always)]
     pub(super) fn prefetch_vertices(&self, hit: &Hit) {
         let scene = self.scene;
-        if let (Some(tri), false) = (
-            scene.geometry.triangles.get(hit.prim as usize),
-            scene.normals.is_empty(),
-        ) {
+        if scene.normals.is_empty() {
+            return;
+        }
+        if let Some(tri) = scene.geometry.triangles.get(hit.prim as usize) {
             for &v in tri {
                 if let Some(n) = scene.normals.get(v as usize) {
                     prefetch(n);
