@@ -5,13 +5,16 @@
 mod common;
 
 use glam::Vec3;
-use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
+use raypack::accel::{Accel, Mode};
+use raypack::ray::Hit;
 use raypack::render::gi::{GiCounts, GiScene, Integrator, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{PhotonMapper, PhotonSettings};
 use raypack::render::sample::{Sampler, SamplerKind};
 use raypack::scene::{Camera, Scene, obj};
+use raypack::simd::Isa;
+use std::path::Path;
 
 /// The Cornell box as `raypack render cornell_box` loads it ([`Scene::from_obj`], mapped
 /// as scenes/README.md says): the camera of cameras.toml, every MTL material Lambertian
@@ -350,4 +353,76 @@ fn gi_scene_files_load() {
         (gold.reflection, gold.glossiness, gold.diffuse),
         (1.0, 0.3, 0.0)
     );
+}
+
+/// Each path of the path tracer's wavefront ([`Integrator::radiance_batch`]: a generation's
+/// vertices, then its shadow rays and bounce rays as queries) ends with the radiance of
+/// the same path traced alone ([`Integrator::radiance`], one vertex and its shadow rays
+/// at a time), bit for bit, with the same ray counts: in every mode, under every
+/// instruction set, with both samplers (the wavefront draws a generation's Sobol values
+/// ahead, in lanes), under a sky (six draws a vertex instead of five) and on Sponza, a
+/// mesh large enough that the wavefront asks for hits' surface records ahead.
+#[test]
+fn path_tracer_wavefront_matches_each_path_traced_alone() {
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut files = vec![shipped.join("part3.toml"), shipped.join("part7.toml")];
+    if common::scenes_beside_crate().is_some() {
+        files.extend(["spheres", "sponza_sky"].map(|s| shipped.join(format!("gi/{s}.toml"))));
+    }
+    for file in files {
+        let scene =
+            raypack::scene::file::load(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let accel = KdTree::build(&scene.geometry);
+        let (w, h) = (40, 30);
+        let frame = scene.camera.frame(w, h);
+        for kind in [SamplerKind::Sobol, SamplerKind::Independent] {
+            let mut gi = GiScene::new(&scene, &accel, scene.settings.background, None);
+            gi.sampler = kind;
+            let tracer = PathTracer { scene: gi };
+            // Two samples of every pixel, as one batch of 2,400 paths.
+            let (mut rays, mut samplers) = (Vec::new(), Vec::new());
+            for k in 0..2 {
+                for y in 0..h {
+                    for x in 0..w {
+                        let mut s = Sampler::new(kind, scene.settings.seed, x, y, k);
+                        let (jx, jy) = s.next_2d();
+                        rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
+                        samplers.push(s);
+                    }
+                }
+            }
+            let mut alone_counts = GiCounts::default();
+            let alone: Vec<Vec3> = rays
+                .iter()
+                .zip(samplers.clone())
+                .map(|(ray, mut s)| tracer.radiance(ray, &mut s, &mut alone_counts))
+                .collect();
+            assert!(alone_counts.shadow > 0 && alone_counts.bounce > 0);
+            let first: Vec<Hit> = rays
+                .iter()
+                .map(|r| accel.intersect(r).unwrap_or(Hit::MISS))
+                .collect();
+            common::each_isa(|| {
+                for mode in Mode::ALL {
+                    let mut counts = GiCounts::default();
+                    let mut s = samplers.clone();
+                    let batch = tracer.radiance_batch(&rays, &first, &mut s, mode, &mut counts);
+                    let name = format!("{} ({kind:?}, {mode}, {})", file.display(), Isa::in_use());
+                    for (i, (b, a)) in batch.iter().zip(&alone).enumerate() {
+                        assert_eq!(
+                            b.to_array().map(f32::to_bits),
+                            a.to_array().map(f32::to_bits),
+                            "{name}: path {i}"
+                        );
+                    }
+                    counts.shadow_packets = 0;
+                    assert_eq!(
+                        (counts.shadow, counts.bounce),
+                        (alone_counts.shadow, alone_counts.bounce),
+                        "{name}"
+                    );
+                }
+            });
+        }
+    }
 }

@@ -18,7 +18,7 @@ use super::batch::{intersect_rays, intersect_unrelated};
 use super::bsdf::Bsdf;
 use super::film::Film;
 use super::lights::Lights;
-use super::sample::{Sampler, SamplerKind};
+use super::sample::{Sampler, SamplerKind, pixel_seed};
 use super::shade::{Shader, transmission};
 use super::tiles::tiles;
 use crate::accel::Accel;
@@ -437,11 +437,15 @@ pub fn render_gi(
             let mut rays = Vec::with_capacity(n);
             let mut samplers = Vec::with_capacity(n);
             let mut hits = vec![Hit::MISS; n];
+            let seeds: Vec<u64> = pixels
+                .iter()
+                .map(|&(x, y)| pixel_seed(seed, x, y))
+                .collect();
             for k in 0..spp {
                 rays.clear();
                 samplers.clear();
-                for &(x, y) in &pixels {
-                    let mut sampler = Sampler::new(kind, seed, x, y, k);
+                for (&(x, y), &pixel) in pixels.iter().zip(&seeds) {
+                    let mut sampler = Sampler::for_pixel(kind, pixel, k);
                     let (jx, jy) = sampler.next_2d();
                     rays.push(frame.ray(x as f32 + jx, y as f32 + jy));
                     samplers.push(sampler);

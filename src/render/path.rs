@@ -24,7 +24,7 @@
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
 use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
-use super::sample::Sampler;
+use super::sample::{Draw, Sampler, draw_ahead};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::simd::scalar_entry;
@@ -38,6 +38,19 @@ const PREFETCH_AHEAD: usize = 16;
 /// ahead only costs instructions (the Cornell box's 64-spp render: 2-7% slower with
 /// it, `sponza_sky`'s 8% faster).
 const PREFETCH_MIN_TRIANGLES: usize = 1 << 14;
+
+/// What a vertex draws from its sampler, in order (the module's doc): the light sample's
+/// choice and point, the BSDF sample's choice and point, Russian roulette's value; under
+/// a sky the environment sample's point comes after the light sample's.
+const VERTEX_DRAWS: [Draw; 5] = [Draw::One, Draw::Two, Draw::One, Draw::Two, Draw::One];
+const VERTEX_DRAWS_SKY: [Draw; 6] = [
+    Draw::One,
+    Draw::Two,
+    Draw::Two,
+    Draw::One,
+    Draw::Two,
+    Draw::One,
+];
 
 /// The path tracer over a prepared scene.
 pub struct PathTracer<'a> {
@@ -250,6 +263,11 @@ impl Integrator for PathTracer<'_> {
                 let mut camera_vertex = true;
                 let shader = &self.scene.shader;
                 let prefetch = shader.triangle_normals.len() >= PREFETCH_MIN_TRIANGLES;
+                let draws: &[Draw] = if self.scene.lights.has_environment() {
+                    &VERTEX_DRAWS_SKY
+                } else {
+                    &VERTEX_DRAWS
+                };
                 // The generation's shadow rays, the paths (and slots) they belong to and their
                 // answers.
                 let (mut owners, mut shadow_rays, mut point_light) =
@@ -260,6 +278,9 @@ impl Integrator for PathTracer<'_> {
                     owners.clear();
                     shadow_rays.clear();
                     point_light.clear();
+                    // The generation's random numbers in lanes, as the vertices will draw
+                    // them.
+                    draw_ahead(samplers, &live, draws);
                     for (k, (&i, h)) in live.iter().zip(&hits).enumerate() {
                         if prefetch {
                             if let Some(ahead) = hits.get(k + PREFETCH_AHEAD) {

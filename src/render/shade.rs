@@ -671,7 +671,9 @@ impl<'a> Shader<'a> {
     }
 }
 
-/// `(1 - u - v) a + u b + v c` over a triangle's per-vertex attribute.
+/// `(1 - u - v) a + u b + v c` over a triangle's per-vertex attribute. Inlined: the path
+/// tracer's vertex runs inside the instruction set's entry (tests/isa_inlining.rs).
+#[inline(always)]
 fn barycentric<T>(attr: &[T], tri: [u32; 3], hit: &Hit) -> T
 where
     T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
