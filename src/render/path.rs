@@ -41,7 +41,9 @@ const PREFETCH_MIN_TRIANGLES: usize = 1 << 14;
 
 /// What a vertex draws from its sampler, in order (the module's doc): the light sample's
 /// choice and point, the BSDF sample's choice and point, Russian roulette's value; under
-/// a sky the environment sample's point comes after the light sample's.
+/// a sky the environment sample's point comes after the light sample's. The wavefront
+/// draws these ahead ([`draw_ahead`]); were [`PathTracer::advance`] to draw otherwise,
+/// its samplers would compute the draws as usual: the same values, only slower.
 const VERTEX_DRAWS: [Draw; 5] = [Draw::One, Draw::Two, Draw::One, Draw::Two, Draw::One];
 const VERTEX_DRAWS_SKY: [Draw; 6] = [
     Draw::One,

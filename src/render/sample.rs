@@ -233,15 +233,29 @@ fn dimension_hashes(seed: u64, dim: u32) -> (u32, u32, u32) {
     (a as u32, (a >> 32) as u32, (b >> 32) as u32)
 }
 
+/// A dimension's shuffle of the point of bit-reversed index `index_reversed` under hash
+/// `h0`, with `rev` reversing words: Owen's scramble of the index as an integer (the
+/// high digits flip the low ones), so a power-of-two block of indices maps onto an
+/// aligned block of the same size and prefixes keep their net property. Before `rev`,
+/// the shuffled index is also the first Sobol dimension's fraction (the van der Corput
+/// sequence of 1D).
+#[inline(always)]
+fn shuffled(index_reversed: u32, h0: u32, rev: impl Fn(u32) -> u32) -> u32 {
+    rev(owen_hash(index_reversed, h0))
+}
+
+/// One coordinate of a point: the fraction whose digits, bit-reversed, are `digits`,
+/// Owen-scrambled under hash `h`.
+#[inline(always)]
+fn scrambled(digits: u32, h: u32, rev: impl Fn(u32) -> u32) -> f32 {
+    unit(rev(owen_hash(digits, h)))
+}
+
 /// Dimension `dim` of the point of bit-reversed index `index_reversed` in the sequence
 /// of `seed`, drawn as `kind` (a 1D value is `.0`), with `rev` reversing words: the
-/// computation behind [`Sobol::next_1d`] and [`Sobol::next_2d`], which [`draw_ahead`]
-/// repeats step by step in lanes (a test holds the two to the same bits).
-///
-/// The shuffle is Owen's scramble of the index as an integer (the high digits flip the
-/// low ones), so a power-of-two block of indices maps onto an aligned block of the same
-/// size and prefixes keep their net property; reversed, the shuffled index `x` is also
-/// the first Sobol dimension's fraction (the scrambled van der Corput sequence of 1D).
+/// computation behind [`Sobol::next_1d`] and [`Sobol::next_2d`], whose steps
+/// [`draw_ahead`] takes one at a time over its lanes (a test holds the two to the same
+/// bits).
 #[inline(always)]
 fn dimension(
     seed: u64,
@@ -251,12 +265,11 @@ fn dimension(
     rev: impl Fn(u32) -> u32,
 ) -> (f32, f32) {
     let (h0, h1, h2) = dimension_hashes(seed, dim);
-    let x = owen_hash(index_reversed, h0);
-    let i = rev(x);
-    let first = unit(rev(owen_hash(i, h1)));
+    let i = shuffled(index_reversed, h0, &rev);
+    let first = scrambled(i, h1, &rev);
     match kind {
         Draw::One => (first, 0.0),
-        Draw::Two => (first, unit(rev(owen_hash(sobol_second(i), h2)))),
+        Draw::Two => (first, scrambled(sobol_second(i), h2, &rev)),
     }
 }
 
@@ -328,8 +341,7 @@ pub fn draw_ahead(samplers: &mut [Sampler], which: &[usize], plan: &[Draw]) {
                 (seed[lane], index[lane], dim[lane]) = (s.seed, s.index_reversed, s.dim);
             }
         }
-        // [`dimension`] a step at a time over the lanes, each step a loop that
-        // vectorises.
+        // `dimension`'s steps one at a time over the lanes, each a loop that vectorises.
         let mut values = [[(0.0f32, 0.0f32); AHEAD_LANES]; AHEAD];
         for (j, &kind) in plan.iter().enumerate() {
             let (mut h0, mut h1, mut h2) = (
@@ -344,13 +356,13 @@ pub fn draw_ahead(samplers: &mut [Sampler], which: &[usize], plan: &[Draw]) {
             let mut i = [0u32; AHEAD_LANES];
             let mut first = [0.0f32; AHEAD_LANES];
             for lane in 0..AHEAD_LANES {
-                i[lane] = owen_hash(index[lane], h0[lane]).reverse_bits();
-                first[lane] = unit(owen_hash(i[lane], h1[lane]).reverse_bits());
+                i[lane] = shuffled(index[lane], h0[lane], u32::reverse_bits);
+                first[lane] = scrambled(i[lane], h1[lane], u32::reverse_bits);
             }
             let mut second = [0.0f32; AHEAD_LANES];
             if kind == Draw::Two {
                 for lane in 0..AHEAD_LANES {
-                    second[lane] = unit(owen_hash(sobol_second(i[lane]), h2[lane]).reverse_bits());
+                    second[lane] = scrambled(sobol_second(i[lane]), h2[lane], u32::reverse_bits);
                 }
             }
             for lane in 0..AHEAD_LANES {
@@ -684,8 +696,8 @@ mod tests {
                             .collect()
                     };
                     let mut ahead = fresh();
-                    // Under the baseline nothing is drawn ahead; the rest holds anyway.
                     let which: Vec<usize> = (0..n).filter(|k| k % 4 != 2).collect();
+                    // Under the baseline nothing is drawn ahead; the rest holds anyway.
                     isa.scope(|| scalar_entry(|| draw_ahead(&mut ahead, &which, plan)))
                         .expect("a supported set");
                     let mut plain = fresh();
