@@ -681,9 +681,13 @@ fn caustics_through_a_glass_slab_agree_between_path_and_photon() {
         let mean = sum / n;
         (mean, ((sum2 / n - mean * mean).max(0.0) / (n - 1.0)).sqrt())
     };
-    let pt = PathTracer {
+    // The path tracer alone, each sample from the camera: light tracing's share of the
+    // caustics comes in `render_gi` (tests/gi_cornell.rs checks the two agree).
+    let mut pt = PathTracer {
         scene: GiScene::new(&s, &accel, Vec3::ZERO, None),
     };
+    assert!(pt.scene.light_tracing);
+    pt.scene.light_tracing = false;
     let (a, sa) = mean_over_image(&pt, 2048);
     // The photon map is itself random and shared by every sample: its noise is measured
     // across 8 maps shot with different seeds (the spread of their 8 image means).

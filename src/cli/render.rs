@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use raypack::accel::Mode;
 use raypack::accel::kdtree::KdTree;
 use raypack::render::film::{ImageFormat, WriteOptions};
-use raypack::render::gi::{GiCounts, GiScene, render_gi};
+use raypack::render::gi::{self, GiCounts, GiScene, render_gi};
 use raypack::render::path::PathTracer;
 use raypack::render::photon::{Photon, PhotonMapper, PhotonSettings};
 use raypack::render::sample::SamplerKind;
@@ -333,7 +333,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let s = &scene.settings;
-    let bar = Progress::new(s.width, s.height)?;
+    let bar = Progress::new(tiles::tiles(s.width, s.height).len() as u64, "tiles")?;
     let start = Instant::now();
     let rendered = pool.install(|| render(&scene, &accel, args.mode, &|| bar.inc()));
     let render_seconds = start.elapsed().as_secs_f64();
@@ -450,7 +450,9 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
         );
     }
     let s = &scene.settings;
-    let bar = Progress::new(s.width, s.height)?;
+    let tile_count = tiles::tiles(s.width, s.height).len();
+    let pieces = tile_count * gi::passes(tile_count, spp) as usize;
+    let bar = Progress::new(pieces as u64, "pieces")?;
     let mut photon_lines = String::new();
     let mut excluded = 0.0;
     let start = Instant::now();
@@ -506,7 +508,7 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
          build      {build_seconds:.3} s (kd-tree)\n\
          {photon_lines}\
          render     {render_seconds:.3} s\n\
-         rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon\n\
+         rays       {} total: {} camera, {} bounce, {} shadow, {} gather, {} photon, {} light\n\
          rays/s     {:.2} M\n\
          tracing    {}\n",
         args.scene,
@@ -521,6 +523,7 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
         c.shadow,
         c.gather,
         c.photon,
+        c.light,
         c.total() as f64 / render_seconds.max(1e-9) / 1e6,
         routing(args.integrator, args.mode, c),
     );
@@ -531,6 +534,7 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
         ("shadow", c.shadow),
         ("gather", c.gather),
         ("photon", c.photon),
+        ("light", c.light),
     ]);
     let integrator = match args.integrator {
         IntegratorArg::Path => "path",
@@ -582,26 +586,28 @@ struct Progress {
     /// Set when stderr is not a terminal: when the render started, and when the last
     /// line was printed (milliseconds since the start).
     lines: Option<(Instant, AtomicU64)>,
+    unit: &'static str,
 }
 
 /// Seconds between the progress lines of a render whose stderr is not a terminal.
 const PROGRESS_LINE_SECONDS: u64 = 5;
 
 impl Progress {
-    fn new(width: u32, height: u32) -> anyhow::Result<Progress> {
-        let bar = ProgressBar::new(tiles::tiles(width, height).len() as u64);
+    /// A bar of `steps` steps, each one of `unit` (tiles, pieces).
+    fn new(steps: u64, unit: &'static str) -> anyhow::Result<Progress> {
+        let bar = ProgressBar::new(steps);
         bar.set_style(
-            ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} tiles, eta {eta}",
-            )
+            ProgressStyle::with_template(&format!(
+                "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit}, eta {{eta}}"
+            ))
             .context("progress bar template")?
             .progress_chars("=> "),
         );
         let lines = (!std::io::stderr().is_terminal()).then(|| (Instant::now(), AtomicU64::new(0)));
-        Ok(Progress { bar, lines })
+        Ok(Progress { bar, lines, unit })
     }
 
-    /// One more tile done.
+    /// One more step done.
     fn inc(&self) {
         self.bar.inc(1);
         let Some((start, last)) = &self.lines else {
@@ -617,7 +623,8 @@ impl Progress {
         {
             let (done, all) = (self.bar.position(), self.bar.length().unwrap_or(0));
             eprintln!(
-                "raypack: {done}/{all} tiles ({:.0}%) in {:.0} s",
+                "raypack: {done}/{all} {} ({:.0}%) in {:.0} s",
+                self.unit,
                 100.0 * done as f64 / all.max(1) as f64,
                 now as f64 / 1000.0
             );

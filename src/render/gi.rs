@@ -1,7 +1,9 @@
 //! render: the driver of the global-illumination integrators ([`super::path`],
 //! [`super::photon`]): tiles rendered in parallel, `spp` jittered camera samples per
-//! pixel. Sample `k` of every pixel of a tile is one batch handed to an [`Integrator`],
-//! which may trace its paths one by one or as a wavefront.
+//! pixel, a tile's samples cut into [`passes`] when the image has few tiles. Sample `k`
+//! of every pixel of a tile is one batch handed to an [`Integrator`], which may trace its
+//! paths one by one or as a wavefront; light an integrator traces from the emitters
+//! ([`Integrator::light_image`]) is added last.
 //!
 //! Speed: a path vertex (`PathTracer::advance` in [`super::path`]) is compiled as one
 //! function. What it calls per vertex (the hit's surface and BSDF, light, environment
@@ -12,7 +14,8 @@
 //!
 //! Invariants: sample `k` of pixel `(x, y)` draws only from its own [`Sampler`]
 //! (`Sampler::new(kind, seed, x, y, k)`), so the image is the same for any number of
-//! threads and any tile order; ray counts are summed per tile in tile order.
+//! threads and any tile order; a tile's passes are summed in pass order, and ray counts
+//! per piece in tile and pass order.
 
 use super::batch::{intersect_rays, intersect_unrelated};
 use super::bsdf::Bsdf;
@@ -24,7 +27,7 @@ use super::tiles::tiles;
 use crate::accel::Accel;
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
-use crate::scene::{Material, Scene};
+use crate::scene::{CameraFrame, Material, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -41,6 +44,10 @@ pub struct GiCounts {
     pub gather: u64,
     /// Rays traced while shooting photons.
     pub photon: u64,
+    /// Rays of the light paths the path tracer traces for caustics ([`super::light_trace`]):
+    /// from the emitters and on through delta bounces; their rays to the camera count
+    /// as `shadow`.
+    pub light: u64,
     /// Packets the camera rays were traced in (0 in scalar mode); not in the total.
     pub camera_packets: u64,
     /// Packets the camera vertex's shadow rays toward point lights were traced in (path
@@ -50,7 +57,7 @@ pub struct GiCounts {
 
 impl GiCounts {
     pub fn total(&self) -> u64 {
-        self.camera + self.bounce + self.shadow + self.gather + self.photon
+        self.camera + self.bounce + self.shadow + self.gather + self.photon + self.light
     }
 }
 
@@ -61,6 +68,7 @@ impl AddAssign for GiCounts {
         self.shadow += o.shadow;
         self.gather += o.gather;
         self.photon += o.photon;
+        self.light += o.light;
         self.camera_packets += o.camera_packets;
         self.shadow_packets += o.shadow_packets;
     }
@@ -101,6 +109,21 @@ pub trait Integrator: Sync {
             .collect()
     }
 
+    /// Light the integrator finds by tracing paths from the emitters to the camera
+    /// instead of from the camera (`None`: none), to be added to the image of `spp`
+    /// camera samples per pixel rendered with `seed`: one value per pixel, row by row,
+    /// the same bits in every `mode`. The path tracer's caustics ([`super::light_trace`]).
+    fn light_image(
+        &self,
+        _frame: &CameraFrame,
+        _spp: u32,
+        _seed: u64,
+        _mode: Mode,
+        _counts: &mut GiCounts,
+    ) -> Option<Vec<Vec3>> {
+        None
+    }
+
     /// One sample of the radiance along camera ray `ray` (already counted).
     fn radiance(&self, ray: &Ray, sampler: &mut Sampler, counts: &mut GiCounts) -> Vec3 {
         let first = self.gi_scene().shader.accel.intersect(ray);
@@ -117,6 +140,10 @@ pub struct GiScene<'a> {
     pub max_bounces: Option<u32>,
     /// How [`render_gi`] draws each camera sample's numbers (Sobol unless set).
     pub sampler: SamplerKind,
+    /// The path tracer leaves caustics to light tracing ([`super::light_trace`]): set
+    /// when some material has a delta lobe (a mirror, a dielectric) and some emitter is
+    /// sampled. The photon mapper ignores it.
+    pub light_tracing: bool,
 }
 
 /// A hit prepared for the global-illumination integrators.
@@ -163,9 +190,15 @@ impl<'a> GiScene<'a> {
         environment: Vec3,
         max_bounces: Option<u32>,
     ) -> GiScene<'a> {
+        let lights = Lights::new(scene, environment);
+        let delta = scene
+            .materials
+            .iter()
+            .any(|m| Bsdf::new(m, Vec3::ONE, Vec3::Z, true).has_delta());
         GiScene {
             shader: Shader::new(scene, accel),
-            lights: Lights::new(scene, environment),
+            light_tracing: delta && !lights.is_empty(),
+            lights,
             max_bounces,
             sampler: SamplerKind::default(),
         }
@@ -400,9 +433,30 @@ pub struct GiRendered {
     pub counts: GiCounts,
 }
 
+/// The pieces [`render_gi`] cuts a render into at least: so many that the last ones to
+/// finish are short and no thread waits long for the others (a 256x192 image has 48
+/// tiles, so its threads waited 4-6% of the render, the last tiles being the slowest).
+/// Fixed, not set by the thread count, so the image is the same on any number of
+/// threads.
+pub const MIN_PIECES: usize = 384;
+
+/// How many passes [`render_gi`] splits each of `tiles` tiles' `spp` samples into.
+pub fn passes(tiles: usize, spp: u32) -> u32 {
+    MIN_PIECES
+        .div_ceil(tiles.max(1))
+        .clamp(1, spp.max(1) as usize) as u32
+}
+
+/// The samples of pass `pass` of `passes`.
+fn pass_samples(spp: u32, passes: u32, pass: u32) -> std::ops::Range<u32> {
+    let at = |q: u32| (u64::from(spp) * u64::from(q) / u64::from(passes)) as u32;
+    at(pass)..at(pass + 1)
+}
+
 /// Renders `spp` samples per pixel of `scene`'s camera at its settings' size through
 /// `integrator` on the current rayon pool, drawing from the integrator's sampler kind
-/// ([`GiScene::sampler`]); `progress` is called once per finished tile.
+/// ([`GiScene::sampler`]); `progress` is called once per finished piece: a tile's pass
+/// ([`passes`] per tile).
 /// In a packet mode the camera rays of a packet width of neighbouring pixels are traced as
 /// one packet, and the integrator sends its other rays as it says
 /// ([`Integrator::radiance_batch`]); the image is that of [`Mode::Scalar`], bit for bit.
@@ -419,10 +473,18 @@ pub fn render_gi(
     let seed = scene.settings.seed;
     let kind = integrator.gi_scene().sampler;
     let spp = spp.max(1);
+    let mut light_counts = GiCounts::default();
+    let light = integrator.light_image(&frame, spp, seed, mode, &mut light_counts);
     let tiles = tiles(width, height);
-    let done: Vec<(Vec<Vec3>, GiCounts)> = tiles
+    let passes = passes(tiles.len(), spp);
+    let pieces: Vec<(usize, u32)> = (0..tiles.len())
+        .flat_map(|t| (0..passes).map(move |q| (t, q)))
+        .collect();
+    let done: Vec<(Vec<Vec3>, GiCounts)> = pieces
         .par_iter()
-        .map(|t| {
+        .map(|&(tile, pass)| {
+            let t = &tiles[tile];
+            let samples = pass_samples(spp, passes, pass);
             let mut counts = GiCounts::default();
             let pixels: Vec<(u32, u32)> = (t.y0..t.y0 + t.height)
                 .flat_map(|y| (t.x0..t.x0 + t.width).map(move |x| (x, y)))
@@ -441,7 +503,7 @@ pub fn render_gi(
                 .iter()
                 .map(|&(x, y)| pixel_seed(seed, x, y))
                 .collect();
-            for k in 0..spp {
+            for k in samples {
                 rays.clear();
                 samplers.clear();
                 for (&(x, y), &pixel) in pixels.iter().zip(&seeds) {
@@ -468,17 +530,33 @@ pub fn render_gi(
                     }
                 }
             }
-            let out: Vec<Vec3> = sums.iter().map(|s| *s / spp as f32).collect();
             progress();
-            (out, counts)
+            (sums, counts)
         })
         .collect();
     let mut film = Film::new(width, height);
-    let mut counts = GiCounts::default();
-    for (t, (pixels, c)) in tiles.iter().zip(done) {
-        counts += c;
-        for (i, px) in pixels.into_iter().enumerate() {
-            film.set(t.x0 + i as u32 % t.width, t.y0 + i as u32 / t.width, px);
+    let mut counts = light_counts;
+    // A tile's passes in order: the same sums whatever thread took each.
+    for (t, passes) in tiles.iter().zip(done.chunks(passes as usize)) {
+        let mut sums = vec![Vec3::ZERO; (t.width * t.height) as usize];
+        for (pass, c) in passes {
+            counts += *c;
+            for (sum, s) in sums.iter_mut().zip(pass) {
+                *sum += *s;
+            }
+        }
+        for (i, s) in sums.into_iter().enumerate() {
+            film.set(
+                t.x0 + i as u32 % t.width,
+                t.y0 + i as u32 / t.width,
+                s / spp as f32,
+            );
+        }
+    }
+    if let Some(light) = light {
+        for (i, l) in light.into_iter().enumerate() {
+            let (x, y) = (i as u32 % width, i as u32 / width);
+            film.set(x, y, film.get(x, y) + l);
         }
     }
     GiRendered { film, counts }

@@ -358,8 +358,30 @@ impl Lights {
         }
         // Reuse u[0] inside the emitters' share.
         let v = ((u[0] - p_env) / (1.0 - p_env)).clamp(0.0, 1.0 - f32::EPSILON);
+        self.emit_from_emitter(v, 1.0 - p_env, [u[1], u[2], u[3], u[4]])
+    }
+
+    /// A light path's start from the emitters alone, the environment left out (five
+    /// uniforms): as [`Lights::emit`] picks an emitter, a point and a direction. `None`
+    /// when there is no emitter.
+    pub fn emit_from_emitters(&self, u: [f32; 5]) -> Option<Emitted> {
+        if self.is_empty() {
+            return None;
+        }
+        self.emit_from_emitter(u[0], 1.0, [u[1], u[2], u[3], u[4]])
+    }
+
+    /// True when light sampling picks points on primitive `prim` (an emissive
+    /// triangle), so light tracing starts paths there too.
+    pub fn is_sampled(&self, prim: u32) -> bool {
+        self.by_prim.contains_key(&prim)
+    }
+
+    /// The emitter picked by `v`, of which the emitters' share of all emission is
+    /// `share`, and a point and a direction from `u`.
+    fn emit_from_emitter(&self, v: f32, share: f32, u: [f32; 4]) -> Option<Emitted> {
         let i = self.pick(v);
-        let select = self.prob[i] * (1.0 - p_env);
+        let select = self.prob[i] * share;
         if select <= 0.0 {
             return None;
         }
@@ -369,11 +391,11 @@ impl Lights {
                 intensity,
             } => Some(Emitted {
                 org: position,
-                dir: uniform_sphere(u[1], u[2]),
+                dir: uniform_sphere(u[0], u[1]),
                 power: intensity * (4.0 * PI) / select,
             }),
             Emitter::Patch(ref e) => {
-                let (mut s, mut normal, mut sides) = (u[1], e.normal, 1.0);
+                let (mut s, mut normal, mut sides) = (u[0], e.normal, 1.0);
                 if e.two_sided {
                     // The first uniform picks a side and is reused along the patch.
                     sides = 2.0;
@@ -384,8 +406,8 @@ impl Lights {
                         normal = -normal;
                     }
                 }
-                let org = e.point(s, u[2]);
-                let local = cosine_hemisphere(u[3], u[4]);
+                let org = e.point(s, u[1]);
+                let local = cosine_hemisphere(u[2], u[3]);
                 let dir = Onb::from_w(normal).to_world(local).normalize();
                 Some(Emitted {
                     org,

@@ -11,6 +11,7 @@ pub mod bsdf;
 pub mod counts;
 pub mod film;
 pub mod gi;
+pub mod light_trace;
 pub mod lights;
 pub mod path;
 pub mod photon;

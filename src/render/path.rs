@@ -6,7 +6,10 @@
 //! sample (an emitter, or the sky where the path escapes) is weighted against the
 //! light-sampling density by the power heuristic (Veach 1997), so each light path is
 //! counted once in expectation; emission seen by the camera, after a delta bounce, or
-//! from an emitter light sampling never picks (spheres, planes) counts in full. Russian
+//! from an emitter light sampling never picks (spheres, planes) counts in full, except
+//! the caustics left to light tracing ([`GiScene::light_tracing`], [`super::light_trace`]):
+//! emission reached through delta bounces right after a smooth lobe at the camera's
+//! first hit counts nothing. Russian
 //! roulette ends paths from the fourth vertex on ([`super::gi::survives`]); `max_bounces`
 //! optionally caps the scattering events, counting both kinds of paths alike (light
 //! sampling at vertex `k` makes a path of `k + 1` bounces).
@@ -24,9 +27,11 @@
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
 use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
+use super::light_trace::{SAMPLES_PER_LIGHT_PATH, caustics};
 use super::sample::{Draw, Sampler, draw_ahead};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
+use crate::scene::CameraFrame;
 use crate::simd::scalar_entry;
 use glam::Vec3;
 
@@ -76,6 +81,9 @@ struct Path {
     /// throughput at its vertex and the radiance the sample brings if unoccluded.
     waiting: [Option<(Vec3, Vec3)>; 2],
     alive: bool,
+    /// The camera's first hit took a smooth lobe and every bounce since a delta one:
+    /// emission this path then reaches is light tracing's ([`super::light_trace`]).
+    caustic: bool,
 }
 
 /// The shadow rays of one vertex: the emitter sample's, then the environment's.
@@ -93,6 +101,7 @@ impl Path {
             vertex: 0,
             waiting: [None; 2],
             alive: true,
+            caustic: false,
         }
     }
 
@@ -132,6 +141,8 @@ impl PathTracer<'_> {
                     let light_pdf = g.lights.pdf(h.hit.prim, p.seg.ray.org, h.p);
                     super::bsdf::power_heuristic(pdf, light_pdf)
                 }
+                // Counted by light tracing instead.
+                None if p.caustic && g.light_tracing && g.lights.is_sampled(h.hit.prim) => 0.0,
                 None => 1.0,
             };
             p.l += p.beta * le * w;
@@ -162,6 +173,11 @@ impl PathTracer<'_> {
             p.alive = false;
             return queries;
         }
+        p.caustic = if p.vertex == 0 {
+            !s.delta
+        } else {
+            p.caustic && s.delta
+        };
         p.bsdf_pdf = (!s.delta).then_some(s.pdf);
         p.from_normal = h.n;
         p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
@@ -216,6 +232,23 @@ impl PathTracer<'_> {
 impl Integrator for PathTracer<'_> {
     fn gi_scene(&self) -> &GiScene<'_> {
         &self.scene
+    }
+
+    /// The caustics the path tracer leaves out ([`GiScene::light_tracing`]), from one
+    /// light path per [`SAMPLES_PER_LIGHT_PATH`] camera samples.
+    fn light_image(
+        &self,
+        frame: &CameraFrame,
+        spp: u32,
+        seed: u64,
+        mode: Mode,
+        counts: &mut GiCounts,
+    ) -> Option<Vec<Vec3>> {
+        let samples = u64::from(spp) * u64::from(frame.width) * u64::from(frame.height);
+        let paths = samples.div_ceil(SAMPLES_PER_LIGHT_PATH);
+        self.scene
+            .light_tracing
+            .then(|| caustics(&self.scene, frame, paths, seed, mode, counts))
     }
 
     fn radiance_traced(

@@ -150,6 +150,34 @@ impl CameraFrame {
         let dir = (self.forward + self.right * ndc_x + self.up * ndc_y).normalize();
         Ray::new(self.eye, dir, 0.0, f32::INFINITY)
     }
+
+    /// Where the ray toward point `p` crosses the film, `(x, y)` in pixels as
+    /// [`CameraFrame::ray`] takes them, with the film's importance along it: the inverse
+    /// of `ray`. `None` when `p` lies behind the eye or outside the image.
+    ///
+    /// The importance `1 / (A cos^3)`, `A` a pixel's area on a film one unit from the eye
+    /// and `cos` the cosine between the ray and the view direction, turns radiance
+    /// arriving at the eye into the mean over a pixel that [`CameraFrame::ray`]'s uniform
+    /// positions estimate: a pixel covers `A / cos^3` of solid angle at that angle.
+    #[inline]
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        if !(z > 0.0) {
+            return None;
+        }
+        let (w, h) = (self.width as f32, self.height as f32);
+        let ndc_x = d.dot(self.right) / z;
+        let ndc_y = d.dot(self.up) / z;
+        let x = (ndc_x / (self.h * w / h) + 1.0) * 0.5 * w;
+        let y = (1.0 - ndc_y / self.h) * 0.5 * h;
+        if !(x >= 0.0 && x < w && y >= 0.0 && y < h) {
+            return None;
+        }
+        let side = 2.0 * self.h / h;
+        let cos = z / d.length();
+        Some((x, y, 1.0 / (side * side * cos * cos * cos)))
+    }
 }
 
 #[cfg(test)]
@@ -191,6 +219,52 @@ mod tests {
         );
         assert_eq!(block_pixel::<W8>(4), (2, 0));
         assert_eq!(block_pixel::<W16>(8), (0, 2));
+    }
+
+    /// `project` inverts `ray`, and its importance integrates to one over a pixel: the
+    /// solid angle of pixel `(i, j)`, summed from small patches of its film area, times
+    /// the importance at its centre, is 1 up to the importance's change over the pixel.
+    #[test]
+    fn project_inverts_ray_and_its_importance_covers_a_pixel() {
+        let cam = Camera {
+            eye: Vec3::new(1.0, 2.0, 3.0),
+            target: Vec3::new(4.0, 1.5, -2.0),
+            up: Vec3::Y,
+            vfov_deg: 50.0,
+        };
+        let f = cam.frame(64, 48);
+        for &(x, y) in &[(0.25f32, 0.5f32), (32.0, 24.0), (63.75, 47.5), (10.3, 40.9)] {
+            let r = f.ray(x, y);
+            let (px, py, _) = f.project(r.org + r.dir * 7.0).unwrap();
+            assert!(
+                (px - x).abs() < 1e-3 && (py - y).abs() < 1e-3,
+                "{x},{y}: {px},{py}"
+            );
+        }
+        assert!(f.project(f.eye - f.forward).is_none());
+        assert!(f.project(f.ray(-0.5, 3.0).dir + f.eye).is_none());
+        for &(i, j) in &[(0u32, 0u32), (31, 23), (63, 5)] {
+            let n = 64;
+            let mut solid = 0.0f64;
+            for a in 0..n {
+                for b in 0..n {
+                    let (x0, y0) = (
+                        i as f32 + a as f32 / n as f32,
+                        j as f32 + b as f32 / n as f32,
+                    );
+                    let s = 1.0 / n as f32;
+                    let c = |x: f32, y: f32| f.ray(x, y).dir;
+                    // The patch's solid angle: two triangles of unit directions.
+                    let (p, q, r, t) = (c(x0, y0), c(x0 + s, y0), c(x0, y0 + s), c(x0 + s, y0 + s));
+                    solid += 0.5
+                        * ((q - p).cross(r - p).length() + (q - t).cross(r - t).length()) as f64;
+                }
+            }
+            let centre = f.ray(i as f32 + 0.5, j as f32 + 0.5);
+            let (_, _, importance) = f.project(centre.org + centre.dir).unwrap();
+            let total = solid * importance as f64;
+            assert!((total - 1.0).abs() < 2e-3, "pixel ({i}, {j}): {total}");
+        }
     }
 
     #[test]
