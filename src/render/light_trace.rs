@@ -1,24 +1,30 @@
 //! render: caustics by light tracing, for the path tracer.
 //!
-//! A caustic seen by the camera is light that left an emitter, bounced off mirrors or
-//! through glass (delta lobes) and landed on a surface with a smooth lobe: paths
-//! `emitter, delta+, smooth, camera`. The path tracer finds such a path only when a BSDF
-//! sample from the smooth surface happens to run through the delta chain into the
-//! emitter, which for a small emitter is rare and bright. On the `spheres` scene (a
-//! mirror ball, a glass ball and a ceiling light) caustics carry 5% of the image's light
-//! and two thirds of its variance; those the camera sees straight away, 1.3% of the light
-//! and a tenth of the error (perf/gi.md). Traced from the other end they are cheap: a path leaves
-//! an emitter, follows the delta lobes, and at each surface with a smooth lobe after at
-//! least one delta bounce connects to the camera by one shadow ray (Veach 1997, light
-//! tracing; Jensen's caustic photons, without the density estimate).
+//! A caustic is light that left an emitter, bounced off mirrors or through glass (delta
+//! lobes) and landed on a surface with a smooth lobe. The path tracer finds it only when
+//! a BSDF sample from that surface happens to run through the delta bounces into the
+//! emitter, which for a small emitter is rare and bright. Traced from the other end the
+//! caustics the camera sees are cheap: a path leaves an emitter, follows the delta
+//! lobes, and at the first surface with a smooth lobe after them connects to the camera
+//! by one shadow ray (Veach 1997, light tracing; Jensen's caustic photons, without the
+//! density estimate); it then takes one smooth bounce and connects the next surface,
+//! which the caustic lights, too ([`SMOOTH_VERTICES`]).
 //!
 //! The two estimators split the paths between them, so each path is counted once and
-//! the sum is unbiased: the path tracer leaves out emission it reaches through a delta
-//! chain right after a smooth lobe at the camera's first hit
+//! the sum is unbiased: the path tracer leaves out emission it reaches through delta
+//! bounces right after one or two smooth bounces from the camera's first hit on
 //! (`PathTracer::advance`), when the emitter is one light tracing starts from
-//! ([`super::lights::Lights::is_sampled`]); light tracing counts exactly those paths, and also the
-//! caustics of point lights and invisible area lights, which the path tracer cannot
-//! reach at all. Caustics seen in a mirror or lit by the sky stay with the path tracer.
+//! ([`super::lights::Lights::is_sampled`]); light tracing counts exactly those paths,
+//! and also the caustics of point lights and invisible area lights, which the path
+//! tracer cannot reach at all. Caustics seen in a mirror or through glass, those lit by
+//! the sky and those further from the camera stay with the path tracer.
+//!
+//! On the `spheres` scene (a mirror ball, a glass ball and a ceiling light; 256 spp,
+//! perf/gi.md) the paths through delta bounces into the emitter carry 5% of the image's
+//! light and two thirds of its variance. Light tracing's share, 1.7% of the light, took
+//! the MSE from 0.00189 to 0.00166; the largest part left, 0.0007 of it, is caustics
+//! seen in the mirror or through the glass (emitter, delta, smooth, delta, camera),
+//! which neither end can connect.
 //!
 //! A render traces one light path per [`SAMPLES_PER_LIGHT_PATH`] camera samples.
 //! Light path `i` draws only from its own generator, and the paths go in fixed chunks,
@@ -37,6 +43,9 @@ use rayon::prelude::*;
 
 /// Light paths per parallel task: one wavefront.
 const CHUNK: u64 = 4096;
+/// Surfaces with a smooth lobe a light path connects to the camera from, one after the
+/// other after its delta bounces: the caustic itself, and what it lights in turn.
+pub const SMOOTH_VERTICES: u32 = 2;
 /// Delta bounces a light path takes at most (a ray caught between two glass faces).
 const MAX_CHAIN: u32 = 64;
 /// Keeps the light paths' streams apart from the pixels' and the photons'.
@@ -49,14 +58,17 @@ struct LightPath {
     beta: Vec3,
     /// Delta bounces so far.
     bounces: u32,
+    /// Smooth bounces since the delta bounces.
+    smooth: u32,
     rng: Pcg32,
 }
 
 /// Camera samples per light path. Most light paths miss the mirrors and glass and end
 /// at their first hit, and those that reach the camera have little variance, so a few
-/// suffice: on `spheres` at 256 spp (2 threads), one per 4, 16 and 64 camera samples
-/// left MSEs of 0.00170, 0.00173 and 0.00182 (0.00189 without light tracing) for 5%,
-/// 2% and under 1% more render time: 16 is about the most efficient (perf/gi.md).
+/// suffice: on `spheres` at 256 spp (2 threads) one light path per 4, 8 and 16 camera
+/// samples left MSEs of 0.00162, 0.00163 and 0.00166 (0.00189 without light tracing),
+/// and one per 4 took 4.6% more time than one per 16 (paired one-thread renders), one
+/// per 8 about the same (perf/gi.md).
 pub const SAMPLES_PER_LIGHT_PATH: u64 = 16;
 
 /// A connection to the camera waiting for its shadow ray.
@@ -120,6 +132,7 @@ fn chunk(
                 seg: Segment::new(Ray::new(e.org, e.dir, 0.0, f32::INFINITY)),
                 beta: e.power,
                 bounces: 0,
+                smooth: 0,
                 rng,
             })
         })
@@ -142,19 +155,30 @@ fn chunk(
                 continue;
             };
             let within = |bounces: u32| g.max_bounces.is_none_or(|m| bounces <= m);
-            // A smooth surface after a delta bounce: the camera may see it lit.
+            // A smooth surface after the delta bounces: the camera may see it lit.
             if p.bounces > 0
                 && h.bsdf.has_smooth()
-                && within(p.bounces + 1)
+                && within(p.bounces + p.smooth + 1)
                 && let Some(c) = connect(frame, &h, -p.seg.ray.dir, p.beta * scale)
             {
                 connections.push(c);
             }
-            if p.bounces >= MAX_CHAIN || !within(p.bounces + 2) {
+            // On: more delta bounces before the first smooth surface, or one smooth
+            // bounce from it; the next surface must still be within the bounces.
+            if p.smooth + 1 >= SMOOTH_VERTICES
+                || p.bounces >= MAX_CHAIN
+                || !within(p.bounces + p.smooth + 2)
+            {
                 continue;
             }
             let u = [(); 3].map(|_| p.rng.next_f32());
-            let Some(s) = h.bsdf.sample_delta(-p.seg.ray.dir, u) else {
+            let wo = -p.seg.ray.dir;
+            let s = if p.bounces == 0 {
+                h.bsdf.sample_delta(wo, u)
+            } else {
+                h.bsdf.sample(wo, u)
+            };
+            let Some(s) = s else {
                 continue;
             };
             // Russian roulette on the scattering weight keeps the power level.
@@ -164,7 +188,11 @@ fn chunk(
             }
             p.beta *= s.weight / q;
             p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
-            p.bounces += 1;
+            if s.delta {
+                p.bounces += 1;
+            } else {
+                p.smooth += 1;
+            }
             next.push(p);
         }
         live = next;

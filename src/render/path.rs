@@ -8,8 +8,8 @@
 //! counted once in expectation; emission seen by the camera, after a delta bounce, or
 //! from an emitter light sampling never picks (spheres, planes) counts in full, except
 //! the caustics left to light tracing ([`GiScene::light_tracing`], [`super::light_trace`]):
-//! emission reached through delta bounces right after a smooth lobe at the camera's
-//! first hit counts nothing. Russian
+//! emission reached through delta bounces right after one or two smooth bounces from the
+//! camera's first hit on counts nothing. Russian
 //! roulette ends paths from the fourth vertex on ([`super::gi::survives`]); `max_bounces`
 //! optionally caps the scattering events, counting both kinds of paths alike (light
 //! sampling at vertex `k` makes a path of `k + 1` bounces).
@@ -27,7 +27,7 @@
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
 use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
-use super::light_trace::{SAMPLES_PER_LIGHT_PATH, caustics};
+use super::light_trace::{SAMPLES_PER_LIGHT_PATH, SMOOTH_VERTICES, caustics};
 use super::sample::{Draw, Sampler, draw_ahead};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
@@ -81,9 +81,19 @@ struct Path {
     /// throughput at its vertex and the radiance the sample brings if unoccluded.
     waiting: [Option<(Vec3, Vec3)>; 2],
     alive: bool,
-    /// The camera's first hit took a smooth lobe and every bounce since a delta one:
-    /// emission this path then reaches is light tracing's ([`super::light_trace`]).
-    caustic: bool,
+    /// Where the path stands against light tracing's share ([`super::light_trace`]).
+    caustic: Caustic,
+}
+
+/// A path against light tracing's share ([`super::light_trace`]): it started with `n`
+/// smooth bounces from the camera's first hit on, then came delta bounces, or neither.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Caustic {
+    Smooth(u32),
+    /// Delta bounces after one to [`SMOOTH_VERTICES`] smooth ones: emission reached now
+    /// is light tracing's.
+    Chain,
+    No,
 }
 
 /// The shadow rays of one vertex: the emitter sample's, then the environment's.
@@ -101,7 +111,7 @@ impl Path {
             vertex: 0,
             waiting: [None; 2],
             alive: true,
-            caustic: false,
+            caustic: Caustic::Smooth(0),
         }
     }
 
@@ -142,7 +152,12 @@ impl PathTracer<'_> {
                     super::bsdf::power_heuristic(pdf, light_pdf)
                 }
                 // Counted by light tracing instead.
-                None if p.caustic && g.light_tracing && g.lights.is_sampled(h.hit.prim) => 0.0,
+                None if p.caustic == Caustic::Chain
+                    && g.light_tracing
+                    && g.lights.is_sampled(h.hit.prim) =>
+                {
+                    0.0
+                }
                 None => 1.0,
             };
             p.l += p.beta * le * w;
@@ -173,10 +188,11 @@ impl PathTracer<'_> {
             p.alive = false;
             return queries;
         }
-        p.caustic = if p.vertex == 0 {
-            !s.delta
-        } else {
-            p.caustic && s.delta
+        p.caustic = match (p.caustic, s.delta) {
+            (Caustic::Smooth(n), false) if n < SMOOTH_VERTICES => Caustic::Smooth(n + 1),
+            (Caustic::Smooth(n), true) if n > 0 => Caustic::Chain,
+            (Caustic::Chain, true) => Caustic::Chain,
+            _ => Caustic::No,
         };
         p.bsdf_pdf = (!s.delta).then_some(s.pdf);
         p.from_normal = h.n;
