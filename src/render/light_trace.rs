@@ -23,8 +23,8 @@
 //! perf/gi.md) the paths through delta bounces into the emitter carry 5% of the image's
 //! light and two thirds of its variance. Light tracing's share, 1.7% of the light, took
 //! the MSE from 0.00189 to 0.00166; the largest part left, 0.0007 of it, is caustics
-//! seen in the mirror or through the glass (emitter, delta, smooth, delta, camera),
-//! which neither end can connect.
+//! seen in the mirror or through the glass (emitter, delta, smooth, delta, ...,
+//! camera), which neither end can connect.
 //!
 //! A render traces one light path per [`SAMPLES_PER_LIGHT_PATH`] camera samples.
 //! Light path `i` draws only from its own generator, and the paths go in fixed chunks,
