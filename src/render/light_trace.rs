@@ -29,8 +29,9 @@
 //! A render traces one light path per [`SAMPLES_PER_LIGHT_PATH`] camera samples.
 //! Light path `i` draws only from its own generator, and the paths go in fixed chunks,
 //! each a wavefront whose rays go as streams ([`intersect_unrelated`]); a chunk's
-//! contributions are summed in path order and the chunks in chunk order, so the image
-//! is the same for any number of threads and in every mode.
+//! contributions are summed in path order and the chunks in chunk order, a batch of
+//! chunks at a time, so the image is the same for any number of threads and in every
+//! mode, and the memory it takes does not grow with the number of light paths.
 
 use super::batch::{intersect_unrelated, occluded_unrelated};
 use super::gi::{GiCounts, GiHit, GiScene, Segment};
@@ -38,11 +39,13 @@ use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::rng::Pcg32;
 use crate::scene::CameraFrame;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 /// Light paths per parallel task: one wavefront.
 const CHUNK: u64 = 4096;
+/// Chunks traced in parallel before their contributions are summed into the image.
+const CHUNKS_PER_BATCH: usize = 256;
 /// Surfaces with a smooth lobe a light path connects to the camera from, one after the
 /// other after its delta bounces: the caustic itself, and what it lights in turn.
 pub const SMOOTH_VERTICES: u32 = 2;
@@ -91,23 +94,28 @@ pub fn caustics(
 ) -> Vec<Vec3> {
     let (width, height) = (frame.width as usize, frame.height as usize);
     let chunks: Vec<u64> = (0..paths.div_ceil(CHUNK)).collect();
-    let done: Vec<(Vec<(usize, Vec3)>, GiCounts)> = chunks
-        .par_iter()
-        .map(|&c| {
-            let mut counts = GiCounts::default();
-            let range = c * CHUNK..((c + 1) * CHUNK).min(paths);
-            let splats = chunk(g, frame, range, paths, seed, mode, &mut counts);
-            (splats, counts)
-        })
-        .collect();
-    let mut image = vec![Vec3::ZERO; width * height];
-    for (splats, c) in done {
-        *counts += c;
-        for (pixel, value) in splats {
-            image[pixel] += value;
+    // Summed in f64: a pixel may take many thousands of contributions.
+    let mut image = vec![DVec3::ZERO; width * height];
+    // A batch of chunks at a time, so the contributions waiting to be summed stay few
+    // however many light paths a render takes.
+    for batch in chunks.chunks(CHUNKS_PER_BATCH) {
+        let done: Vec<(Vec<(usize, Vec3)>, GiCounts)> = batch
+            .par_iter()
+            .map(|&c| {
+                let mut counts = GiCounts::default();
+                let range = c * CHUNK..((c + 1) * CHUNK).min(paths);
+                let splats = chunk(g, frame, range, paths, seed, mode, &mut counts);
+                (splats, counts)
+            })
+            .collect();
+        for (splats, c) in done {
+            *counts += c;
+            for (pixel, value) in splats {
+                image[pixel] += value.as_dvec3();
+            }
         }
     }
-    image
+    image.into_iter().map(|p| p.as_vec3()).collect()
 }
 
 /// The light paths `range` of `paths`, as one wavefront: their contributions in path
