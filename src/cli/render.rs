@@ -450,9 +450,7 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
         );
     }
     let s = &scene.settings;
-    let tile_count = tiles::tiles(s.width, s.height).len();
-    let pieces = tile_count * gi::passes(tile_count, spp) as usize;
-    let bar = Progress::new(pieces as u64, "pieces")?;
+    let bar = Progress::new(gi::pieces(s.width, s.height, spp) as u64, "pieces")?;
     let mut photon_lines = String::new();
     let mut excluded = 0.0;
     let start = Instant::now();

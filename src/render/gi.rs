@@ -21,7 +21,7 @@ use super::batch::{intersect_rays, intersect_unrelated};
 use super::bsdf::Bsdf;
 use super::film::Film;
 use super::lights::Lights;
-use super::sample::{Sampler, SamplerKind, pixel_seed};
+use super::sample::{Pcg32, Sampler, SamplerKind, pixel_seed};
 use super::shade::{Shader, transmission};
 use super::tiles::tiles;
 use crate::accel::Accel;
@@ -426,6 +426,23 @@ pub fn survives(vertex: u32, throughput: &mut Vec3, sampler: &mut Sampler) -> bo
     true
 }
 
+/// Bounces a path from an emitter (a photon, a light path), or a specular chain of a
+/// camera or gather ray, may take at most (a ray caught between two glass faces).
+pub const MAX_CHAIN: u32 = 64;
+
+/// Russian roulette on the scattering weight of a path from an emitter (photons, light
+/// paths): the path goes on with probability `min(1, max channel of weight)`, drawn from
+/// `rng` only when that is positive, and the factor its power takes is returned; so
+/// powers stay level. `None`: the path ends.
+#[inline(always)]
+pub fn scatter_roulette(weight: Vec3, rng: &mut Pcg32) -> Option<Vec3> {
+    let q = weight.max_element().min(1.0);
+    if !(q > 0.0) || rng.next_f32() >= q {
+        return None;
+    }
+    Some(weight / q)
+}
+
 /// A rendered image with the rays it took.
 #[derive(Clone, Debug)]
 pub struct GiRendered {
@@ -439,6 +456,13 @@ pub struct GiRendered {
 /// Fixed, not set by the thread count, so the image is the same on any number of
 /// threads.
 pub const MIN_PIECES: usize = 384;
+
+/// How many pieces [`render_gi`] cuts a `width x height` render of `spp` samples per
+/// pixel into: what its `progress` counts.
+pub fn pieces(width: u32, height: u32, spp: u32) -> usize {
+    let tiles = tiles(width, height).len();
+    tiles * passes(tiles, spp) as usize
+}
 
 /// How many passes [`render_gi`] splits each of `tiles` tiles' `spp` samples into.
 pub fn passes(tiles: usize, spp: u32) -> u32 {

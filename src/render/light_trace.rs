@@ -34,7 +34,7 @@
 //! mode, and the memory it takes does not grow with the number of light paths.
 
 use super::batch::{intersect_unrelated, occluded_unrelated};
-use super::gi::{GiCounts, GiHit, GiScene, Segment};
+use super::gi::{GiCounts, GiHit, GiScene, MAX_CHAIN, Segment, scatter_roulette};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::rng::Pcg32;
@@ -49,8 +49,6 @@ const CHUNKS_PER_BATCH: usize = 256;
 /// Surfaces with a smooth lobe a light path connects to the camera from, one after the
 /// other after its delta bounces: the caustic itself, and what it lights in turn.
 pub const SMOOTH_VERTICES: u32 = 2;
-/// Delta bounces a light path takes at most (a ray caught between two glass faces).
-const MAX_CHAIN: u32 = 64;
 /// Keeps the light paths' streams apart from the pixels' and the photons'.
 const LIGHT_STREAM_SALT: u64 = 0x6c69_6768_7470_6174;
 
@@ -189,12 +187,10 @@ fn chunk(
             let Some(s) = s else {
                 continue;
             };
-            // Russian roulette on the scattering weight keeps the power level.
-            let q = s.weight.max_element().min(1.0);
-            if !(q > 0.0) || p.rng.next_f32() >= q {
+            let Some(factor) = scatter_roulette(s.weight, &mut p.rng) else {
                 continue;
-            }
-            p.beta *= s.weight / q;
+            };
+            p.beta *= factor;
             p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
             if s.delta {
                 p.bounces += 1;

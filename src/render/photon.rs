@@ -32,7 +32,7 @@
 //! Lambertian scenes such as the Cornell box. [`GiScene::max_bounces`] caps the path
 //! tracer only; photon paths end by Russian roulette.
 
-use super::gi::{GiCounts, GiHit, GiScene, Integrator, Segment};
+use super::gi::{GiCounts, GiHit, GiScene, Integrator, MAX_CHAIN, Segment, scatter_roulette};
 use super::sample::{Pcg32, Sampler};
 use crate::ray::{Hit, Ray};
 use glam::Vec3;
@@ -290,8 +290,6 @@ const SAME_SIDE_COS: f32 = 0.9;
 
 /// Photons per parallel task.
 const PHOTON_CHUNK: u32 = 4096;
-/// Bounces a photon, or a specular chain of a camera or gather ray, may take at most.
-const MAX_CHAIN: u32 = 64;
 /// Keeps the photon streams apart from the pixels' ([`super::sample::pixel_rng`]).
 const PHOTON_STREAM_SALT: u64 = 0x7068_6f74_6f6e_7321;
 
@@ -467,12 +465,10 @@ fn shoot(
         let Some(s) = h.bsdf.sample(-seg.ray.dir, u) else {
             break;
         };
-        // Russian roulette on the scattering weight keeps powers level.
-        let q = s.weight.max_element().min(1.0);
-        if q <= 0.0 || rng.next_f32() >= q {
+        let Some(factor) = scatter_roulette(s.weight, rng) else {
             break;
-        }
-        power *= s.weight / q;
+        };
+        power *= factor;
         specular_only &= s.delta;
         seg = g.spawn(&h, s.wi, s.transmitted, seg.medium);
     }
