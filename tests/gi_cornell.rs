@@ -445,12 +445,12 @@ fn path_tracer_wavefront_matches_each_path_traced_alone() {
 
 /// Light tracing counts the caustics the path tracer leaves to it (`spheres`: a mirror
 /// ball and a glass ball under the ceiling light; paths emitter, delta bounces, one or
-/// two smooth surfaces, camera): their mean over the image agrees with what the path tracer alone
-/// finds on the same paths, with any number of bounces and with at most two. With the
-/// same seed the path tracer's paths are the same with light tracing on or off, so the
-/// difference of the two images, less the light image, is exactly the path tracer's
-/// share of those caustics. 32 seeds; agreement within 5 standard errors, which are
-/// small enough to see a fifth too much or too little.
+/// two smooth surfaces, camera): their mean over the image agrees with what the path
+/// tracer alone finds on the same paths, with any number of bounces and with at most
+/// two. With the same seed the path tracer's paths are the same with light tracing on
+/// or off, so the difference of the two images, less the light image, is exactly the
+/// path tracer's share of those caustics. 32 seeds; agreement within 5 standard
+/// errors, which are small enough to see a fifth too much or too little.
 #[test]
 fn light_traced_caustics_agree_with_the_path_tracers() {
     require_scenes!();
