@@ -245,7 +245,7 @@ fn path_tracer_white_furnace_converges_to_the_emitted_radiance_for_any_albedo() 
             let accel = KdTree::build(&s.geometry);
             let mut scene = GiScene::new(&s, &accel, Vec3::ZERO, None);
             scene.sampler = kind;
-            let pt = PathTracer { scene };
+            let pt = PathTracer::new(scene);
             let e = estimate(&pt, &ray, 40_000, 1);
             assert_close(
                 &format!("path furnace a={a}, {kind:?}"),
@@ -285,9 +285,7 @@ fn each_bounce_adds_albedo_times_the_previous_one() {
     let accel = KdTree::build(&s.geometry);
     let mut previous = Vec3::ZERO;
     for d in 0..6u32 {
-        let pt = PathTracer {
-            scene: GiScene::new(&s, &accel, Vec3::ZERO, Some(d)),
-        };
+        let pt = PathTracer::new(GiScene::new(&s, &accel, Vec3::ZERO, Some(d)));
         let want: f32 = (0..=d).map(|k| (1.0 - a) * l * a.powi(k as i32)).sum();
         let e = estimate(&pt, &ray, 40_000, 3);
         assert_close(
@@ -354,9 +352,7 @@ fn irradiance_under_a_small_area_light(shift: Vec3) {
     let ray = Ray::new(eye + shift, (-eye).normalize(), 0.0, f32::INFINITY);
     let accel = KdTree::build(&s.geometry);
     for bounces in [Some(1), None] {
-        let pt = PathTracer {
-            scene: GiScene::new(&s, &accel, Vec3::ZERO, bounces),
-        };
+        let pt = PathTracer::new(GiScene::new(&s, &accel, Vec3::ZERO, bounces));
         let e = estimate(&pt, &ray, 40_000, 4);
         assert_close(
             &format!("area light, path, bounces {bounces:?}, shifted by {shift}"),
@@ -409,9 +405,7 @@ fn a_point_light_falls_off_with_the_squared_distance() {
     let eye = Vec3::new(0.0, 1.0, -1.0);
     let ray = Ray::new(eye, (-eye).normalize(), 0.0, f32::INFINITY);
     let want = rho * intensity / (std::f32::consts::PI * h * h);
-    let pt = PathTracer {
-        scene: GiScene::new(&s, &accel, Vec3::ZERO, None),
-    };
+    let pt = PathTracer::new(GiScene::new(&s, &accel, Vec3::ZERO, None));
     let (got, se) = estimate(&pt, &ray, 1000, 6);
     assert!((got.x - want).abs() < 1e-4 * want, "{got} vs {want}");
     assert!(se.x < 1e-5 * want, "one bounce, one light: no noise ({se})");
@@ -460,9 +454,7 @@ fn slab(front: Material, thickness: Option<f32>, theta: f32) -> (Scene, Ray) {
 
 fn both_integrators(s: &Scene, ray: &Ray, n: u32, what: &str, want: Vec3, max_rel_se: f32) {
     let accel = KdTree::build(&s.geometry);
-    let pt = PathTracer {
-        scene: GiScene::new(s, &accel, Vec3::ZERO, None),
-    };
+    let pt = PathTracer::new(GiScene::new(s, &accel, Vec3::ZERO, None));
     assert_close(
         &format!("{what}, path"),
         estimate(&pt, ray, n, 7),
@@ -553,7 +545,7 @@ fn a_glossy_plane_under_the_sky_reflects_its_directional_albedo() {
             for kind in [SamplerKind::Sobol, SamplerKind::Independent] {
                 let mut scene = GiScene::new(&s, &accel, Vec3::ONE, None);
                 scene.sampler = kind;
-                let pt = PathTracer { scene };
+                let pt = PathTracer::new(scene);
                 let e = estimate(&pt, &ray, 40_000, 3);
                 assert_close(
                     &format!("glossy plane alpha {alpha} theta {theta}, {kind:?}"),
@@ -683,9 +675,7 @@ fn caustics_through_a_glass_slab_agree_between_path_and_photon() {
     };
     // The path tracer alone, each sample from the camera: light tracing's share of the
     // caustics comes in `render_gi` (tests/gi_cornell.rs checks the two agree).
-    let mut pt = PathTracer {
-        scene: GiScene::new(&s, &accel, Vec3::ZERO, None),
-    };
+    let mut pt = PathTracer::new(GiScene::new(&s, &accel, Vec3::ZERO, None));
     assert!(pt.scene.light_tracing);
     pt.scene.light_tracing = false;
     let (a, sa) = mean_over_image(&pt, 2048);

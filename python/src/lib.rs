@@ -649,7 +649,7 @@ fn render<'py>(
                 let mut gi = GiScene::new(gi_scene, &scene.tree, environment, max_bounces);
                 gi.sampler = sampler;
                 if integrator == "path" {
-                    let tracer = PathTracer { scene: gi };
+                    let tracer = PathTracer::new(gi);
                     render_gi(gi_scene, &tracer, spp, mode, &|| {}).film
                 } else {
                     let settings = PhotonSettings {

@@ -456,7 +456,7 @@ fn run_gi(staged: Staged, args: &Args, options: &WriteOptions) -> anyhow::Result
     let start = Instant::now();
     let rendered = match args.integrator {
         IntegratorArg::Path => {
-            let tracer = PathTracer { scene: gi };
+            let tracer = PathTracer::new(gi);
             pool.install(|| render_gi(&scene, &tracer, spp, args.mode, &|| bar.inc()))
         }
         _ => {

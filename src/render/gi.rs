@@ -144,6 +144,11 @@ pub struct GiScene<'a> {
     /// when some material has a delta lobe (a mirror, a dielectric) and some emitter is
     /// sampled. The photon mapper ignores it.
     pub light_tracing: bool,
+    /// With light tracing, the path tracer estimates the caustics it sees through delta
+    /// bounces from the light paths' photons ([`super::light_trace`]); set unless
+    /// `max_bounces` is, since a photon does not know the path's length on the camera's
+    /// side.
+    pub caustic_photons: bool,
 }
 
 /// A hit prepared for the global-illumination integrators.
@@ -198,10 +203,17 @@ impl<'a> GiScene<'a> {
         GiScene {
             shader: Shader::new(scene, accel),
             light_tracing: delta && !lights.is_empty(),
+            caustic_photons: max_bounces.is_none(),
             lights,
             max_bounces,
             sampler: SamplerKind::default(),
         }
+    }
+
+    /// True when the path tracer reads caustics seen through delta bounces from photons
+    /// ([`GiScene::caustic_photons`]).
+    pub fn photon_caustics(&self) -> bool {
+        self.light_tracing && self.caustic_photons
     }
 
     pub fn scene(&self) -> &'a Scene {

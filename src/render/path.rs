@@ -9,7 +9,10 @@
 //! from an emitter light sampling never picks (spheres, planes) counts in full, except
 //! the caustics left to light tracing ([`GiScene::light_tracing`], [`super::light_trace`]):
 //! emission reached through delta bounces right after one or two smooth bounces from the
-//! camera's first hit on counts nothing. Russian
+//! camera's first hit on counts nothing, nor does emission reached through delta bounces
+//! after a smooth bounce from a surface that a delta bounce led to; such a surface (seen
+//! in a mirror, through glass) reads that light from the caustic photons instead
+//! ([`GiScene::photon_caustics`], [`super::light_trace::CausticPhotons`]). Russian
 //! roulette ends paths from the fourth vertex on ([`super::gi::survives`]); `max_bounces`
 //! optionally caps the scattering events, counting both kinds of paths alike (light
 //! sampling at vertex `k` makes a path of `k + 1` bounces).
@@ -27,13 +30,14 @@
 
 use super::batch::{intersect_unrelated, occluded_rays, occluded_unrelated};
 use super::gi::{GiCounts, GiScene, Integrator, Segment, ShadowQuery, survives};
-use super::light_trace::{SAMPLES_PER_LIGHT_PATH, SMOOTH_VERTICES, caustics};
+use super::light_trace::{CausticPhotons, SAMPLES_PER_LIGHT_PATH, SMOOTH_VERTICES, caustics};
 use super::sample::{Draw, Sampler, draw_ahead};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::scene::CameraFrame;
 use crate::simd::scalar_entry;
 use glam::Vec3;
+use std::sync::{Arc, RwLock};
 
 /// How many hits ahead of the one it shades the wavefront asks for a hit's surface
 /// records (half as far for its vertices' normals, which need the triangle first).
@@ -62,6 +66,23 @@ const VERTEX_DRAWS_SKY: [Draw; 6] = [
 /// The path tracer over a prepared scene.
 pub struct PathTracer<'a> {
     pub scene: GiScene<'a>,
+    /// The caustic photons of the last light pass ([`Integrator::light_image`]), read
+    /// by the camera paths of the same render.
+    caustics: RwLock<Arc<CausticPhotons>>,
+}
+
+impl<'a> PathTracer<'a> {
+    pub fn new(scene: GiScene<'a>) -> PathTracer<'a> {
+        PathTracer {
+            scene,
+            caustics: RwLock::default(),
+        }
+    }
+
+    /// The caustic photons the camera paths read now (none before a light pass).
+    pub fn caustic_photons(&self) -> Arc<CausticPhotons> {
+        Arc::clone(&self.caustics.read().unwrap_or_else(|e| e.into_inner()))
+    }
 }
 
 /// One path in flight: the ray it traces next and what it has gathered.
@@ -81,19 +102,55 @@ struct Path {
     /// throughput at its vertex and the radiance the sample brings if unoccluded.
     waiting: [Option<(Vec3, Vec3)>; 2],
     alive: bool,
-    /// Where the path stands against light tracing's share ([`super::light_trace`]).
+    /// Where the path stands against the shares of light tracing and the caustic photons.
     caustic: Caustic,
 }
 
-/// A path against light tracing's share ([`super::light_trace`]): it started with `n`
-/// smooth bounces from the camera's first hit on, then came delta bounces, or neither.
+/// A path against the caustics estimated from the other end: light tracing's
+/// ([`super::light_trace`]: it started with `n` smooth bounces from the camera's first
+/// hit on, then came delta bounces) and the caustic photons' (a surface reached by a
+/// delta bounce scattered smoothly, then came delta bounces).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Caustic {
     Smooth(u32),
     /// Delta bounces after one to [`SMOOTH_VERTICES`] smooth ones: emission reached now
     /// is light tracing's.
     Chain,
+    /// The last bounce was a delta one, outside both shares.
+    Delta,
+    /// A smooth bounce from a surface reached by a delta bounce.
+    Through,
+    /// Delta bounces after [`Caustic::Through`]: emission reached now is the photons'.
+    PhotonChain,
     No,
+}
+
+impl Caustic {
+    /// The state after a bounce, `delta` or smooth; `photons` when the path tracer
+    /// reads the caustic photons ([`GiScene::photon_caustics`]).
+    #[inline(always)]
+    fn after(self, delta: bool, photons: bool) -> Caustic {
+        use Caustic::*;
+        let next = match (self, delta) {
+            (Smooth(n), false) if n < SMOOTH_VERTICES => Smooth(n + 1),
+            (Smooth(n), true) if n > 0 => Chain,
+            (Chain, true) => Chain,
+            (Through | PhotonChain, true) => PhotonChain,
+            (_, true) => Delta,
+            (Chain | Delta | PhotonChain, false) => Through,
+            _ => No,
+        };
+        match next {
+            Delta | Through | PhotonChain if !photons => No,
+            _ => next,
+        }
+    }
+
+    /// True when the current ray came from a delta bounce, so a surface it reaches with
+    /// a smooth lobe reads the caustic photons.
+    fn by_delta(self) -> bool {
+        matches!(self, Caustic::Chain | Caustic::Delta | Caustic::PhotonChain)
+    }
 }
 
 /// The shadow rays of one vertex: the emitter sample's, then the environment's.
@@ -135,6 +192,7 @@ impl PathTracer<'_> {
         p: &mut Path,
         hit: Option<Hit>,
         sampler: &mut Sampler,
+        caustics: &CausticPhotons,
         counts: &mut GiCounts,
     ) -> Queries {
         let g = &self.scene;
@@ -152,8 +210,8 @@ impl PathTracer<'_> {
                     super::bsdf::power_heuristic(pdf, light_pdf)
                 }
                 // Counted by light tracing instead.
-                None if p.caustic == Caustic::Chain
-                    && g.light_tracing
+                None if (p.caustic == Caustic::Chain && g.light_tracing
+                    || p.caustic == Caustic::PhotonChain && g.photon_caustics())
                     && g.lights.is_sampled(h.hit.prim) =>
                 {
                     0.0
@@ -167,6 +225,10 @@ impl PathTracer<'_> {
             return [None; 2];
         }
         let wo = -p.seg.ray.dir;
+        // A surface seen through delta bounces: its caustics come from the photons.
+        if p.caustic.by_delta() && g.photon_caustics() && h.bsdf.has_smooth() {
+            p.l += p.beta * caustics.radiance(&h, wo);
+        }
         let queries = [
             g.direct_query(&h, wo, sampler, true),
             g.environment_query(&h, wo, sampler),
@@ -188,12 +250,7 @@ impl PathTracer<'_> {
             p.alive = false;
             return queries;
         }
-        p.caustic = match (p.caustic, s.delta) {
-            (Caustic::Smooth(n), false) if n < SMOOTH_VERTICES => Caustic::Smooth(n + 1),
-            (Caustic::Smooth(n), true) if n > 0 => Caustic::Chain,
-            (Caustic::Chain, true) => Caustic::Chain,
-            _ => Caustic::No,
-        };
+        p.caustic = p.caustic.after(s.delta, g.photon_caustics());
         p.bsdf_pdf = (!s.delta).then_some(s.pdf);
         p.from_normal = h.n;
         p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
@@ -262,9 +319,12 @@ impl Integrator for PathTracer<'_> {
     ) -> Option<Vec<Vec3>> {
         let samples = u64::from(spp) * u64::from(frame.width) * u64::from(frame.height);
         let paths = samples.div_ceil(SAMPLES_PER_LIGHT_PATH);
-        self.scene
-            .light_tracing
-            .then(|| caustics(&self.scene, frame, paths, seed, mode, counts))
+        if !self.scene.light_tracing {
+            return None;
+        }
+        let c = caustics(&self.scene, frame, paths, seed, mode, counts);
+        *self.caustics.write().unwrap_or_else(|e| e.into_inner()) = Arc::new(c.photons);
+        Some(c.image)
     }
 
     fn radiance_traced(
@@ -277,8 +337,9 @@ impl Integrator for PathTracer<'_> {
         let accel = self.scene.shader.accel;
         let mut p = Path::new(*ray);
         let mut hit = first;
+        let caustics = self.caustic_photons();
         loop {
-            let queries = self.advance(&mut p, hit, sampler, counts);
+            let queries = self.advance(&mut p, hit, sampler, &caustics, counts);
             for (slot, q) in queries.iter().enumerate() {
                 if let Some(q) = q {
                     p.resolve(slot, accel.occluded(&q.ray));
@@ -307,6 +368,7 @@ impl Integrator for PathTracer<'_> {
             #[inline(always)]
             || {
                 let accel = self.scene.shader.accel;
+                let caustics = self.caustic_photons();
                 let mut paths: Vec<Path> = rays.iter().map(|r| Path::new(*r)).collect();
                 // Live paths and the closest hits of their current rays, in the same order.
                 let mut live: Vec<usize> = (0..paths.len()).collect();
@@ -342,7 +404,8 @@ impl Integrator for PathTracer<'_> {
                             }
                         }
                         let hit = h.is_hit().then_some(*h);
-                        let queries = self.advance(&mut paths[i], hit, &mut samplers[i], counts);
+                        let queries =
+                            self.advance(&mut paths[i], hit, &mut samplers[i], &caustics, counts);
                         for (slot, q) in queries.iter().enumerate() {
                             if let Some(q) = q {
                                 owners.push((i, slot));
@@ -373,5 +436,68 @@ impl Integrator for PathTracer<'_> {
                 paths.iter().map(|p| p.l).collect()
             },
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Who counts the emission a path reaches right after bounce `m - 1` of `bounces`
+    /// (`true`: a delta bounce; bounce 0 is at the camera's first hit), by the shares'
+    /// definitions rather than the state machine: light tracing takes emission reached
+    /// through delta bounces after one or two smooth bounces from the first hit on, the
+    /// caustic photons that reached through delta bounces after a smooth bounce from a
+    /// surface a delta bounce led to, the path tracer the rest.
+    fn owner(bounces: &[bool]) -> &'static str {
+        let m = bounces.len();
+        if m == 0 || !bounces[m - 1] {
+            return "path";
+        }
+        let Some(j) = bounces.iter().rposition(|&delta| !delta) else {
+            return "path";
+        };
+        if !bounces[..=j].contains(&true) && j < SMOOTH_VERTICES as usize {
+            "light"
+        } else if j > 0 && bounces[j - 1] {
+            "photons"
+        } else {
+            "path"
+        }
+    }
+
+    /// Every sequence of up to 9 bounces: the state machine leaves emission to the share
+    /// that owns it, and reads the photons at exactly the surfaces a delta bounce led to,
+    /// so each path is counted once; with the photons off it is light tracing's alone.
+    #[test]
+    fn each_path_has_one_owner() {
+        for m in 0..=9usize {
+            for bits in 0..1u32 << m {
+                let bounces: Vec<bool> = (0..m).map(|i| bits >> i & 1 == 1).collect();
+                for photons in [true, false] {
+                    let mut c = Caustic::Smooth(0);
+                    for (i, &delta) in bounces.iter().enumerate() {
+                        let by_delta = i > 0 && bounces[i - 1];
+                        assert_eq!(c.by_delta(), by_delta && c != Caustic::No, "{bounces:?}");
+                        c = c.after(delta, photons);
+                    }
+                    let got = match c {
+                        Caustic::Chain => "light",
+                        Caustic::PhotonChain => "photons",
+                        _ => "path",
+                    };
+                    let want = match owner(&bounces) {
+                        "photons" if !photons => "path",
+                        w => w,
+                    };
+                    assert_eq!(got, want, "{bounces:?}, photons {photons}");
+                    if photons {
+                        // The photons read at the surface reached by a delta bounce.
+                        let reached_by_delta = m > 0 && bounces[m - 1];
+                        assert_eq!(c.by_delta(), reached_by_delta, "{bounces:?}");
+                    }
+                }
+            }
+        }
     }
 }
