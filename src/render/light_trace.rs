@@ -42,7 +42,7 @@
 
 use super::batch::{intersect_unrelated, occluded_unrelated};
 use super::gi::{GiCounts, GiHit, GiScene, MAX_CHAIN, Segment, scatter_roulette};
-use super::photon::{Photon, PhotonMap};
+use super::photon::{Photon, PhotonGrid};
 use crate::accel::Mode;
 use crate::ray::{Hit, Ray};
 use crate::rng::Pcg32;
@@ -126,9 +126,7 @@ pub struct Caustics {
 /// to [`MAX_PHOTON_PATHS`].
 #[derive(Clone, Debug, Default)]
 pub struct CausticPhotons {
-    map: PhotonMap,
-    /// Radius of the estimate, in scene units.
-    pub radius: f32,
+    grid: PhotonGrid,
 }
 
 /// The estimate's radius over the scene's bounding-box diagonal for one light path;
@@ -148,31 +146,35 @@ impl CausticPhotons {
         } else {
             1.0
         };
+        let radius = RADIUS_OVER_DIAGONAL * scale * (paths.max(1) as f32).powf(-1.0 / 6.0);
         CausticPhotons {
-            map: PhotonMap::build(photons),
-            radius: RADIUS_OVER_DIAGONAL * scale * (paths.max(1) as f32).powf(-1.0 / 6.0),
+            grid: PhotonGrid::build(photons, radius),
         }
     }
 
     pub fn len(&self) -> usize {
-        self.map.len()
+        self.grid.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.map.is_empty()
+        self.grid.is_empty()
+    }
+
+    /// Radius of the estimate, in scene units.
+    pub fn radius(&self) -> f32 {
+        self.grid.radius()
     }
 
     /// The radiance toward `wo` that `h` reflects of the photons that landed within the
     /// radius on its side: `sum f(wo, wi) power / (pi r^2)`.
     #[inline(always)]
     pub fn radiance(&self, h: &GiHit, wo: Vec3) -> Vec3 {
-        if self.map.is_empty() {
+        if self.grid.is_empty() {
             return Vec3::ZERO;
         }
         let mut sum = Vec3::ZERO;
-        self.map.within(
+        self.grid.within(
             h.p,
-            self.radius,
             #[inline(always)]
             |ph| {
                 if ph.n.dot(h.n) > 0.0 {
@@ -180,7 +182,8 @@ impl CausticPhotons {
                 }
             },
         );
-        sum / (PI * self.radius * self.radius)
+        let r = self.grid.radius();
+        sum / (PI * r * r)
     }
 }
 

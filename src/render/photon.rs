@@ -125,37 +125,6 @@ impl PhotonMap {
         out
     }
 
-    /// Calls `visit` with every photon within distance `radius` of `p`, in an order fixed
-    /// by the tree (the same for any thread count). No heap: a fixed-radius estimate
-    /// needs only the sum.
-    #[inline(always)]
-    pub fn within(&self, p: Vec3, radius: f32, mut visit: impl FnMut(&Photon)) {
-        // Index ranges still to visit: one per level at most, and a balanced tree of
-        // 2^32 photons has 32 levels.
-        let mut stack = [(0usize, 0usize); 40];
-        stack[0] = (0, self.photons.len());
-        let mut top = 1;
-        let r2 = radius * radius;
-        while top > 0 {
-            top -= 1;
-            let (lo, hi) = stack[top];
-            if lo >= hi {
-                continue;
-            }
-            let (mid, delta, near, far) = self.node(lo, hi, p);
-            let ph = &self.photons[mid];
-            if (ph.p - p).length_squared() <= r2 {
-                visit(ph);
-            }
-            if delta * delta <= r2 {
-                stack[top] = far;
-                top += 1;
-            }
-            stack[top] = near;
-            top += 1;
-        }
-    }
-
     /// The node of the range `lo..hi` (its middle photon), `p`'s signed distance from
     /// its splitting plane, and the ranges of its children on `p`'s side and the other.
     #[inline(always)]
@@ -232,6 +201,106 @@ impl PhotonMap {
             .iter()
             .fold(Vec3::ZERO, |s, &(_, i)| s + self.photons[i as usize].power);
         sum / (PI * r2)
+    }
+}
+
+/// Photons in a hashed uniform grid for searches of one fixed radius: cells of twice
+/// the radius, so a search reads at most 8 cells, each a run of the photon array; an
+/// empty cell costs one read of the run starts. Cells share buckets by a spatial hash
+/// (Teschner et al. 2003), and a search keeps only photons of the cells it asked for.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonGrid {
+    /// The photons by bucket, in their given order within a bucket.
+    photons: Vec<Photon>,
+    /// Where each bucket's run starts, and one past the last.
+    starts: Vec<u32>,
+    radius: f32,
+    inv_cell: f32,
+}
+
+impl PhotonGrid {
+    /// `photons` for searches of `radius` (positive and finite, else nothing is found).
+    pub fn build(photons: Vec<Photon>, radius: f32) -> PhotonGrid {
+        if photons.is_empty() || !(radius > 0.0 && radius.is_finite()) {
+            return PhotonGrid::default();
+        }
+        let inv_cell = 0.5 / radius;
+        let buckets = (2 * photons.len()).next_power_of_two();
+        let bucket = |ph: &Photon| Self::hash(Self::cell(ph.p, inv_cell)) & (buckets - 1);
+        let mut starts = vec![0u32; buckets + 1];
+        for ph in &photons {
+            starts[bucket(ph) + 1] += 1;
+        }
+        for b in 0..buckets {
+            starts[b + 1] += starts[b];
+        }
+        let mut next = starts.clone();
+        let mut sorted = photons.clone();
+        for ph in photons {
+            let b = bucket(&ph);
+            sorted[next[b] as usize] = ph;
+            next[b] += 1;
+        }
+        PhotonGrid {
+            photons: sorted,
+            starts,
+            radius,
+            inv_cell,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.photons.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty()
+    }
+
+    /// The radius it searches.
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    #[inline(always)]
+    fn cell(p: Vec3, inv_cell: f32) -> [i32; 3] {
+        // Saturating casts: far-off points share the edge cells, which the distance
+        // test sorts out.
+        (p * inv_cell).floor().to_array().map(|c| c as i32)
+    }
+
+    #[inline(always)]
+    fn hash([x, y, z]: [i32; 3]) -> usize {
+        (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ z.wrapping_mul(83_492_791))
+            as u32 as usize
+    }
+
+    /// Calls `visit` with every photon within the radius of `p`, in an order fixed by
+    /// the build (the same for any thread count).
+    #[inline(always)]
+    pub fn within(&self, p: Vec3, mut visit: impl FnMut(&Photon)) {
+        if self.photons.is_empty() {
+            return;
+        }
+        let r2 = self.radius * self.radius;
+        let lo = Self::cell(p - self.radius, self.inv_cell);
+        let hi = Self::cell(p + self.radius, self.inv_cell);
+        let mask = self.starts.len() - 2;
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    let b = Self::hash([x, y, z]) & mask;
+                    let run = self.starts[b] as usize..self.starts[b + 1] as usize;
+                    for ph in &self.photons[run] {
+                        if (ph.p - p).length_squared() <= r2
+                            && Self::cell(ph.p, self.inv_cell) == [x, y, z]
+                        {
+                            visit(ph);
+                        }
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -567,20 +636,28 @@ impl Integrator for PhotonMapper<'_> {
 mod tests {
     use super::*;
 
-    /// The fixed-radius search finds exactly the photons a brute-force scan finds, on
-    /// random clouds with duplicates and points on a plane (the caustics' usual shape),
-    /// for radii from zero to past the cloud, at query points on photons and off them.
+    /// The grid's search finds exactly the photons a brute-force scan finds, each once,
+    /// on random clouds with duplicates and points on a plane (the caustics' usual
+    /// shape), for radii from tiny to past the cloud, at query points on photons and off
+    /// them, near the origin and far from it (negative cells, saturated casts).
     #[test]
-    fn within_finds_what_a_scan_finds() {
+    fn grid_finds_what_a_scan_finds() {
         let mut rng = Pcg32::new(7, 1);
-        for (n, flat) in [(0, false), (1, false), (2, true), (37, false), (1000, true)] {
+        for (n, flat, offset) in [
+            (0, false, 0.0),
+            (1, false, 0.0),
+            (2, true, -3.0),
+            (37, false, 0.0),
+            (1000, true, -0.5),
+            (300, false, 1e12),
+        ] {
             let mut photons: Vec<Photon> = (0..n)
                 .map(|_| {
                     let y = if flat { 0.5 } else { rng.next_f32() };
                     Photon {
-                        p: Vec3::new(rng.next_f32(), y, rng.next_f32()),
+                        p: Vec3::new(rng.next_f32(), y, rng.next_f32()) + offset,
                         dir: Vec3::NEG_Y,
-                        power: Vec3::ONE,
+                        power: Vec3::splat(rng.next_f32()),
                         n: Vec3::Y,
                     }
                 })
@@ -588,20 +665,18 @@ mod tests {
             if n > 2 {
                 photons[1].p = photons[0].p;
             }
-            let map = PhotonMap::build(photons);
-            let mut queries: Vec<Vec3> = map.photons().iter().take(5).map(|p| p.p).collect();
-            queries
-                .extend((0..20).map(|_| {
-                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 1.2 - 0.1
+            for r in [1e-3, 0.01, 0.1, 0.3, 2.0] {
+                let grid = PhotonGrid::build(photons.clone(), r);
+                let mut queries: Vec<Vec3> = photons.iter().take(5).map(|p| p.p).collect();
+                queries.extend((0..20).map(|_| {
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 1.2 - 0.1 + offset
                 }));
-            for q in queries {
-                for r in [0.0, 0.01, 0.1, 0.3, 2.0] {
+                for q in queries {
                     let mut found = Vec::new();
-                    map.within(q, r, |ph| found.push(*ph));
-                    let key = |p: &Photon| p.p.to_array().map(f32::to_bits);
+                    grid.within(q, |ph| found.push(*ph));
+                    let key = |p: &Photon| (p.p.to_array(), p.power.x).map_bits();
                     found.sort_by_key(key);
-                    let mut want: Vec<Photon> = map
-                        .photons()
+                    let mut want: Vec<Photon> = photons
                         .iter()
                         .filter(|ph| (ph.p - q).length_squared() <= r * r)
                         .copied()
@@ -610,6 +685,17 @@ mod tests {
                     assert_eq!(found, want, "{n} photons, query {q}, radius {r}");
                 }
             }
+        }
+        assert!(PhotonGrid::build(vec![], 1.0).is_empty());
+    }
+
+    trait MapBits {
+        fn map_bits(self) -> ([u32; 3], u32);
+    }
+
+    impl MapBits for ([f32; 3], f32) {
+        fn map_bits(self) -> ([u32; 3], u32) {
+            (self.0.map(f32::to_bits), self.1.to_bits())
         }
     }
 }
