@@ -100,6 +100,26 @@ fn mean(c: Vec3) -> f32 {
 }
 
 impl Bsdf {
+    /// The factor by which a light path (light tracing, photons) that sampled `s` here
+    /// scales its power: `(n_from / n_to)^2` along the light's travel through a
+    /// refraction, 1 otherwise. The path tracer leaves radiance unscaled on transmission
+    /// (the module's doc), and the adjoint of that transport scales power by the squared
+    /// ratio, so both ends agree where an emitter or the camera sits inside glass;
+    /// across a closed object, entered and left, the factors cancel.
+    #[inline(always)]
+    pub fn adjoint_scale(&self, s: &BsdfSample) -> f32 {
+        if !s.transmitted {
+            return 1.0;
+        }
+        // The light arrives from the side `entering` refers to.
+        let eta = if self.entering {
+            1.0 / self.ior
+        } else {
+            self.ior
+        };
+        eta * eta
+    }
+
     /// The mixture for `material` with (textured) `albedo` at a surface whose geometric
     /// normal facing the ray is `n`; `entering` is false when the ray hit the back.
     #[inline(always)]

@@ -323,7 +323,8 @@ fn chunk(
             let Some(factor) = scatter_roulette(s.weight, &mut p.rng) else {
                 continue;
             };
-            p.beta *= factor;
+            // Scaled after the roulette, so a closed object's two factors cancel exactly.
+            p.beta *= factor * h.bsdf.adjoint_scale(&s);
             p.seg = g.spawn(&h, s.wi, s.transmitted, p.seg.medium);
             if s.delta {
                 p.bounces += 1;

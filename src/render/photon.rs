@@ -578,7 +578,8 @@ fn shoot(
         let Some(factor) = scatter_roulette(s.weight, rng) else {
             break;
         };
-        power *= factor;
+        // Scaled after the roulette, so a closed object's two factors cancel exactly.
+        power *= factor * h.bsdf.adjoint_scale(&s);
         specular_only &= s.delta;
         seg = g.spawn(&h, s.wi, s.transmitted, seg.medium);
     }
