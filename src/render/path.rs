@@ -209,7 +209,7 @@ impl PathTracer<'_> {
                     let light_pdf = g.lights.pdf(h.hit.prim, p.seg.ray.org, h.p);
                     super::bsdf::power_heuristic(pdf, light_pdf)
                 }
-                // Counted by light tracing instead.
+                // Counted by light tracing, or by its photons, instead.
                 None if (p.caustic == Caustic::Chain && g.light_tracing
                     || p.caustic == Caustic::PhotonChain && g.photon_caustics())
                     && g.lights.is_sampled(h.hit.prim) =>
