@@ -30,7 +30,7 @@
 //! On the `spheres` scene (a mirror ball, a glass ball and a ceiling light; 256 spp,
 //! perf/gi.md) the paths through delta bounces into the emitter carry 5% of the image's
 //! light and two thirds of its variance. Light tracing's connections, 1.7% of the light,
-//! took the MSE from 0.00189 to 0.00166, and the caustic photons to 0.00103 for 7% more
+//! took the MSE from 0.00189 to 0.00166, and the caustic photons to 0.00103 for 5% more
 //! time.
 //!
 //! A render traces one light path per [`SAMPLES_PER_LIGHT_PATH`] camera samples.
