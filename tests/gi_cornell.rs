@@ -441,6 +441,14 @@ fn path_tracer_wavefront_matches_each_path_traced_alone() {
     }
 }
 
+/// The mean of `x` and its standard error.
+fn mean_and_se(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
+}
+
 /// `spheres` (scenes/gi) as the file has it, and with a glass ball over its light, the
 /// emitter inside glass: there light paths cross one refraction that camera paths cross
 /// the other way (`Bsdf::adjoint_scale`).
@@ -479,12 +487,6 @@ fn light_traced_caustics_agree_with_the_path_tracers() {
     let mean = |px: &[Vec3]| {
         px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3.0 * px.len() as f64)
     };
-    let stats = |x: &[f64]| {
-        let n = x.len() as f64;
-        let m = x.iter().sum::<f64>() / n;
-        let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (var / n).sqrt())
-    };
     for (i, (name, mut scene)) in spheres_scenes().into_iter().enumerate() {
         scene.settings.width = width;
         scene.settings.height = height;
@@ -521,7 +523,7 @@ fn light_traced_caustics_agree_with_the_path_tracers() {
                 traced.push(mean(&light));
                 alone.push(mean(&share));
             }
-            let ((a, sa), (b, sb)) = (stats(&traced), stats(&alone));
+            let ((a, sa), (b, sb)) = (mean_and_se(&traced), mean_and_se(&alone));
             let name = format!("{name}, max bounces {max_bounces:?}");
             eprintln!(
                 "{name}: caustics light traced {a:.6} +- {sa:.6}, path traced {b:.6} +- {sb:.6}"
@@ -589,12 +591,6 @@ fn photons_agree(name: &str, mut scene: Scene) {
             .sum();
         sum / f64::from(width * height * spp)
     };
-    let stats = |x: &[f64]| {
-        let n = x.len() as f64;
-        let m = x.iter().sum::<f64>() / n;
-        let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (var / n).sqrt())
-    };
     let (mut photons, mut paths, mut differences) = (Vec::new(), Vec::new(), Vec::new());
     for seed in 0..24u64 {
         let reading = PathTracer::new(GiScene::new(&scene, &accel, Vec3::ZERO, None));
@@ -622,7 +618,11 @@ fn photons_agree(name: &str, mut scene: Scene) {
         paths.push(counted - left);
         differences.push(read - counted);
     }
-    let ((a, sa), (b, sb), (d, sd)) = (stats(&photons), stats(&paths), stats(&differences));
+    let ((a, sa), (b, sb), (d, sd)) = (
+        mean_and_se(&photons),
+        mean_and_se(&paths),
+        mean_and_se(&differences),
+    );
     eprintln!(
         "{name}: photons {a:.6} +- {sa:.6}, path traced {b:.6} +- {sb:.6}, \
          difference {d:.6} +- {sd:.6}"

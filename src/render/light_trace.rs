@@ -160,11 +160,6 @@ impl CausticPhotons {
         self.grid.is_empty()
     }
 
-    /// Radius of the estimate, in scene units.
-    pub fn radius(&self) -> f32 {
-        self.grid.radius()
-    }
-
     /// The radiance toward `wo` that `h` reflects of the photons that landed within the
     /// radius on its side: `sum f(wo, wi) power / (pi r^2)`.
     #[inline(always)]

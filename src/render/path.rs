@@ -137,7 +137,7 @@ impl Caustic {
             (Chain, true) => Chain,
             (Through | PhotonChain, true) => PhotonChain,
             (_, true) => Delta,
-            (Chain | Delta | PhotonChain, false) => Through,
+            (c, false) if c.by_delta() => Through,
             _ => No,
         };
         match next {

@@ -60,9 +60,6 @@ pub struct PhotonMap {
     axis: Vec<u8>,
 }
 
-/// A range of the photon array: a subtree.
-type Range = (usize, usize);
-
 /// A candidate of the k-nearest search, ordered by squared distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Near {
@@ -125,20 +122,6 @@ impl PhotonMap {
         out
     }
 
-    /// The node of the range `lo..hi` (its middle photon), `p`'s signed distance from
-    /// its splitting plane, and the ranges of its children on `p`'s side and the other.
-    #[inline(always)]
-    fn node(&self, lo: usize, hi: usize, p: Vec3) -> (usize, f32, Range, Range) {
-        let mid = lo + (hi - lo) / 2;
-        let a = self.axis[mid] as usize;
-        let delta = p[a] - self.photons[mid].p[a];
-        if delta < 0.0 {
-            (mid, delta, (lo, mid), (mid + 1, hi))
-        } else {
-            (mid, delta, (mid + 1, hi), (lo, mid))
-        }
-    }
-
     #[allow(clippy::too_many_arguments)]
     fn search(
         &self,
@@ -153,8 +136,15 @@ impl PhotonMap {
         if lo >= hi {
             return;
         }
-        let (mid, delta, near, far) = self.node(lo, hi, p);
+        let mid = lo + (hi - lo) / 2;
         let ph = &self.photons[mid];
+        let a = self.axis[mid] as usize;
+        let delta = p[a] - ph.p[a];
+        let (near, far) = if delta < 0.0 {
+            ((lo, mid), (mid + 1, hi))
+        } else {
+            ((mid + 1, hi), (lo, mid))
+        };
         self.search(near.0, near.1, p, k, r2, keep, heap);
         let d2 = (ph.p - p).length_squared();
         if d2 <= *r2 && keep(ph) {
@@ -675,7 +665,7 @@ mod tests {
                 for q in queries {
                     let mut found = Vec::new();
                     grid.within(q, |ph| found.push(*ph));
-                    let key = |p: &Photon| (p.p.to_array(), p.power.x).map_bits();
+                    let key = |p: &Photon| (p.p.to_array().map(f32::to_bits), p.power.x.to_bits());
                     found.sort_by_key(key);
                     let mut want: Vec<Photon> = photons
                         .iter()
@@ -688,15 +678,5 @@ mod tests {
             }
         }
         assert!(PhotonGrid::build(vec![], 1.0).is_empty());
-    }
-
-    trait MapBits {
-        fn map_bits(self) -> ([u32; 3], u32);
-    }
-
-    impl MapBits for ([f32; 3], f32) {
-        fn map_bits(self) -> ([u32; 3], u32) {
-            (self.0.map(f32::to_bits), self.1.to_bits())
-        }
     }
 }
