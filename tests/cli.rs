@@ -421,6 +421,67 @@ fn bench_cost_flags_change_the_tree_not_the_hits() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `--accel bvh8` times the 8-wide BVH on the same sets: every mode gives the kd-tree's
+/// checksums (spheres too: the balls), and the JSON names the accelerator.
+#[test]
+fn bench_times_the_bvh_with_the_kd_tree_s_answers() {
+    let dir = scratch("bvh8");
+    let run = |accel: &str| {
+        let json = dir.join(format!("{accel}.json"));
+        let out = raypack(&[
+            "bench",
+            "spd:balls:2",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--repeat",
+            "1",
+            "--threads",
+            "1",
+            "--modes",
+            "scalar,packet8,stream",
+            "--accel",
+            accel,
+            "--json",
+            s(&json),
+        ]);
+        check(&out, "raypack bench --accel");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let sums: Vec<String> = v["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["checksum"].as_str().unwrap().to_string())
+            .collect();
+        (v["accel"].as_str().unwrap().to_string(), sums)
+    };
+    let (kd_name, kd) = run("kdtree");
+    let (bvh_name, bvh) = run("bvh8");
+    assert_eq!(
+        (kd_name.as_str(), bvh_name.as_str()),
+        ("SAH kd-tree", "8-wide BVH")
+    );
+    assert_eq!(kd.len(), 9);
+    assert_eq!(kd, bvh);
+    for bad in [
+        vec!["--accel", "bvh4"],
+        vec!["--accel", "bvh8", "--compare-tree", "--traversal-cost 10"],
+    ] {
+        let mut args = vec!["bench", "spd:tetra:1"];
+        args.extend(&bad);
+        let out = raypack(&args);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--accel") || err.contains("--compare-tree"),
+            "{bad:?}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn bench_times_a_second_tree_pass_by_pass() {
     let dir = scratch("compare");

@@ -8,9 +8,7 @@
 mod common;
 
 use common::hit_bits;
-use common::{
-    adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
-};
+use common::{adversarial_rays, camera_rays, mixed_primitives, random_rays, shared_scene};
 use glam::Vec3;
 use rayon::prelude::*;
 use raypack::accel::Accel;
@@ -144,54 +142,14 @@ fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what:
     }
 }
 
-#[test]
-fn random_soups_match_brute_force() {
-    for (count, size, seed) in [
-        (1, 0.5, 1),
-        (40, 0.5, 2),
-        (2_000, 0.1, 3),
-        (12_000, 0.03, 4),
-    ] {
-        let g = generate::random_soup(count, size, seed);
-        let camera = looking_at(&g, Vec3::new(0.3, 0.4, -1.0));
-        check_scene(&g, &camera, seed, 1_500, &format!("soup {count}"));
+// One test per kind of stress scene, each through `check_stress`.
+crate::stress_tests!();
+
+/// [`check_scene`] on each of [`common::stress_scenes`]`(kind)`.
+fn check_stress(kind: &str) {
+    for s in common::stress_scenes(kind) {
+        check_scene(&s.geometry, &s.camera, s.seed, s.rays, &s.what);
     }
-}
-
-#[test]
-fn tessellated_sphere_matches_brute_force() {
-    let g = generate::tessellated_sphere(Vec3::new(1.0, 2.0, 3.0), 2.0, 48, 64);
-    let camera = looking_at(&g, Vec3::new(0.0, 0.2, -1.0));
-    check_scene(&g, &camera, 11, 3_000, "sphere");
-}
-
-#[test]
-fn axis_aligned_grid_on_split_planes_matches_brute_force() {
-    let g = generate::axis_aligned_grid(6);
-    let camera = looking_at(&g, Vec3::new(0.7, 0.5, -1.0));
-    check_scene(&g, &camera, 21, 4_000, "grid");
-    // Axis-aligned cameras: rays in lattice planes, running along the triangles' edges.
-    let camera = Camera {
-        eye: Vec3::new(3.0, 3.0, -10.0),
-        target: Vec3::new(3.0, 3.0, 0.0),
-        up: Vec3::Y,
-        vfov_deg: 40.0,
-    };
-    check_scene(&g, &camera, 22, 500, "grid, straight camera");
-}
-
-#[test]
-fn closed_box_matches_brute_force() {
-    let g = generate::closed_box(8);
-    let camera = looking_at(&g, Vec3::new(0.1, 0.1, -0.2));
-    check_scene(&g, &camera, 31, 3_000, "closed box");
-}
-
-#[test]
-fn spheres_boxes_planes_and_triangles_match_brute_force() {
-    let g = mixed_primitives();
-    let camera = looking_at(&g, Vec3::new(0.2, 0.5, -1.0));
-    check_scene(&g, &camera, 43, 3_000, "mixed primitives");
 }
 
 #[test]

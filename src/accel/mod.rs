@@ -11,6 +11,7 @@
 
 pub mod axis;
 pub mod brute;
+pub mod bvh;
 pub mod kdtree;
 mod mode;
 pub mod occupancy;

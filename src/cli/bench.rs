@@ -11,6 +11,7 @@ use super::{BadInput, check_size_flags, load_scene};
 use anyhow::Context;
 use raypack::accel::Accel;
 use raypack::accel::Mode;
+use raypack::accel::bvh::Bvh;
 use raypack::accel::kdtree::stats::{self, TraversalCounts};
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::rayset::trace::{Order, Query, checksum_set, split_packets};
@@ -50,6 +51,9 @@ pub fn prepare(
 /// Name of the accelerator, for reports.
 pub const ACCEL_NAME: &str = "SAH kd-tree";
 
+/// Name of `--accel bvh8`'s accelerator, for reports.
+pub const BVH_NAME: &str = "8-wide BVH";
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// A TOML scene, an OBJ mesh, a scene name of ../shared/scenes/cameras.toml, or spd:NAME[:SIZE].
@@ -83,6 +87,12 @@ pub struct Args {
     /// Also write the results as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// The accelerator to time: kdtree (the SAH kd-tree, every mode) or bvh8 (the 8-wide
+    /// BVH for incoherent rays; its stream mode walks one ray at a time, eight boxes per
+    /// step, and the packet and tile modes trace their rays one by one). The ray sets are
+    /// made with the kd-tree either way.
+    #[arg(long, default_value = "kdtree", value_parser = ["kdtree", "bvh8"])]
+    pub accel: String,
     #[command(flatten)]
     pub tree: super::TreeArgs,
     /// Time a second tree against the first, built with these tree flags (e.g.
@@ -356,8 +366,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(compare_params)
         .transpose()?;
 
+    if args.accel == "bvh8" && args.compare_tree.is_some() {
+        return Err(
+            BadInput("--compare-tree compares kd-trees: it needs --accel kdtree".into()).into(),
+        );
+    }
     let scene = load_scene(&args.scene)?;
     let (accel, build_seconds, mut sets) = prepare(&scene, args.width, args.height, &params)?;
+    let bvh = (args.accel == "bvh8").then(|| Bvh::build(&scene.geometry));
     if let Some(dir) = &args.rays {
         for name in &args.sets {
             let set = rayset::read_rays(&dir.join(format!("{name}.rays")))?;
@@ -380,6 +396,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.tree.empty_bonus,
         build_seconds
     );
+    if let Some(bvh) = &bvh {
+        outln!(
+            "timed: {BVH_NAME} ({} nodes, {:.1} bytes per triangle) built in {:.3} s",
+            bvh.nodes().len(),
+            bvh.bytes() as f64 / scene.geometry.triangles.len().max(1) as f64,
+            bvh.build_seconds()
+        );
+    }
     let second = second_params.map(|p| build_accel(&scene.geometry, &p));
     if let (Some((tree, seconds)), Some(flags)) = (&second, &args.compare_tree) {
         outln!(
@@ -463,28 +487,124 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|&t| pinned_pool(t).map(|p| (t, p)))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let load_before = load_average();
+    let timing = Timing {
+        sets: &sets,
+        names: &args.sets,
+        modes: &args.modes.0,
+        pools: &pools,
+        repeat: args.repeat,
+    };
+    let Timed {
+        rows,
+        disagreements,
+        tile_notes,
+        work_notes,
+    } = match &bvh {
+        Some(bvh) => time_sets(&[bvh], &timing),
+        None => time_sets(&trees, &timing),
+    };
+    let load_after = load_average();
+    if args.modes.0.len() > 1 {
+        for line in fastest(&rows) {
+            outln!("{line}");
+        }
+    }
+    for note in &tile_notes {
+        outln!("tile64, {note}");
+    }
+    if stats::ENABLED {
+        outln!("traversal work (a packet step counts once, whatever its active lanes):");
+    }
+    for note in &work_notes {
+        outln!("  {note}");
+    }
+    outln!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
+    let busiest = threads.iter().copied().max().unwrap_or(1);
+    if machine_was_busy(load_after, busiest, machine.cores) {
+        eprintln!(
+            "raypack: warning: the machine was busy: load average {load_after:.2} with at most {} of raypack on {}; other processes shared the cores and these figures are unreliable",
+            super::count(busiest, "thread"),
+            super::count(machine.cores, "core"),
+        );
+    }
+    if let Some(path) = &args.json {
+        let report = Report {
+            machine,
+            scene: args.scene.clone(),
+            accel: if bvh.is_some() { BVH_NAME } else { ACCEL_NAME }.to_string(),
+            triangles: scene.geometry.triangles.len(),
+            spheres: scene.geometry.spheres.len(),
+            primitives: scene.geometry.prim_count(),
+            build_seconds: bvh.as_ref().map_or(build_seconds, |b| b.build_seconds()),
+            builder: args.tree.builder.to_string(),
+            sah_costs: [
+                args.tree.traversal_cost,
+                args.tree.intersection_cost,
+                args.tree.empty_bonus,
+            ],
+            width: sets.primary.width,
+            height: sets.primary.height,
+            light: sets.light.to_array(),
+            light_source: sets.light_source.describe().to_string(),
+            split_packets,
+            compare_tree: args.compare_tree.clone(),
+            second_build_seconds: second.as_ref().map(|(_, seconds)| *seconds),
+            load_average: [load_before, load_after],
+            results: rows,
+        };
+        super::write_json(path, &report)?;
+    }
+    if !disagreements.is_empty() {
+        anyhow::bail!(
+            "checksums differ between modes or thread counts: {}",
+            disagreements.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// What [`time_sets`] needs besides the accelerators.
+struct Timing<'a> {
+    sets: &'a StandardSets,
+    names: &'a [String],
+    modes: &'a [Mode],
+    pools: &'a [(usize, rayon::ThreadPool)],
+    repeat: usize,
+}
+
+/// The rows and notes of [`time_sets`].
+struct Timed {
+    rows: Vec<Row>,
+    disagreements: Vec<String>,
+    tile_notes: Vec<String>,
+    work_notes: Vec<String>,
+}
+
+/// Times every set, thread count and mode on `trees` (one accelerator, or two with
+/// `--compare-tree`), printing a row for each.
+fn time_sets<A: Accel>(trees: &[&A], timing: &Timing) -> Timed {
     let mut rows = Vec::new();
     let mut disagreements = Vec::new();
     let mut tile_notes = Vec::new();
     let mut work_notes = Vec::new();
-    let load_before = load_average();
-    for name in &args.sets {
-        let set = set_named(&sets, name);
+    for name in timing.names {
+        let set = set_named(timing.sets, name);
         let query = match name.as_str() {
             "shadow" => Query::Occluded,
             _ => Query::Closest,
         };
         let mut first: Option<Checksum> = None;
-        for (t, pool) in &pools {
-            for &mode in &args.modes.0 {
-                let results = measure(pool, &trees, set, mode, query, args.repeat);
+        for (t, pool) in timing.pools {
+            for &mode in timing.modes {
+                let results = measure(pool, trees, set, mode, query, timing.repeat);
                 let (rates, checksum) = (&results[0].rates, results[0].checksum);
                 for (k, m) in results.iter().enumerate() {
                     let which = if k == 0 { "" } else { ", second tree" };
                     if stats::ENABLED {
                         let w = m.work;
                         // One warm-up pass and `repeat` timed ones.
-                        let rays = (set.len() * (args.repeat + 1)).max(1) as f64;
+                        let rays = (set.len() * (timing.repeat + 1)).max(1) as f64;
                         work_notes.push(format!(
                             "{name} {mode:<8} {}{which}: {:.2} node steps, {:.2} leaf visits, {:.2} primitive tests per ray",
                             super::count(*t, "thread"),
@@ -571,64 +691,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    let load_after = load_average();
-    if args.modes.0.len() > 1 {
-        for line in fastest(&rows) {
-            outln!("{line}");
-        }
+    Timed {
+        rows,
+        disagreements,
+        tile_notes,
+        work_notes,
     }
-    for note in &tile_notes {
-        outln!("tile64, {note}");
-    }
-    if stats::ENABLED {
-        outln!("traversal work (a packet step counts once, whatever its active lanes):");
-    }
-    for note in &work_notes {
-        outln!("  {note}");
-    }
-    outln!("load average (1 min) before / after the passes: {load_before:.2} / {load_after:.2}");
-    let busiest = threads.iter().copied().max().unwrap_or(1);
-    if machine_was_busy(load_after, busiest, machine.cores) {
-        eprintln!(
-            "raypack: warning: the machine was busy: load average {load_after:.2} with at most {} of raypack on {}; other processes shared the cores and these figures are unreliable",
-            super::count(busiest, "thread"),
-            super::count(machine.cores, "core"),
-        );
-    }
-    if let Some(path) = &args.json {
-        let report = Report {
-            machine,
-            scene: args.scene.clone(),
-            accel: ACCEL_NAME.to_string(),
-            triangles: scene.geometry.triangles.len(),
-            spheres: scene.geometry.spheres.len(),
-            primitives: scene.geometry.prim_count(),
-            build_seconds,
-            builder: args.tree.builder.to_string(),
-            sah_costs: [
-                args.tree.traversal_cost,
-                args.tree.intersection_cost,
-                args.tree.empty_bonus,
-            ],
-            width: sets.primary.width,
-            height: sets.primary.height,
-            light: sets.light.to_array(),
-            light_source: sets.light_source.describe().to_string(),
-            split_packets,
-            compare_tree: args.compare_tree.clone(),
-            second_build_seconds: second.as_ref().map(|(_, seconds)| *seconds),
-            load_average: [load_before, load_after],
-            results: rows,
-        };
-        super::write_json(path, &report)?;
-    }
-    if !disagreements.is_empty() {
-        anyhow::bail!(
-            "checksums differ between modes or thread counts: {}",
-            disagreements.join(", ")
-        );
-    }
-    Ok(())
 }
 
 /// One line per set and thread count naming the mode with the highest median rate, in

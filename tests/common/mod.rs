@@ -401,3 +401,137 @@ pub fn quad_corners(width: u32, height: u32) -> Vec<(u32, u32)> {
         .map(|i| raypack::rayset::packet_pixel(i, width))
         .collect()
 }
+
+/// A stress scene of the accelerator tests: its name, geometry, camera, a seed and
+/// how many random and adversarial rays to trace.
+pub struct Stress {
+    pub what: String,
+    pub geometry: Geometry,
+    pub camera: Camera,
+    pub seed: u64,
+    pub rays: usize,
+}
+
+/// The stress scenes every accelerator is checked against brute force on: random
+/// soups of 1 to 12,000 triangles, a tessellated sphere, an axis-aligned grid (whose
+/// triangles lie in lattice planes, seen obliquely and straight on), a closed box and
+/// mixed primitives. `kind` is `soups`, `sphere`, `grid`, `closed box` or `mixed`.
+pub fn stress_scenes(kind: &str) -> Vec<Stress> {
+    let scene = |what: String, geometry: Geometry, from: Vec3, seed: u64, rays: usize| {
+        let camera = looking_at(&geometry, from);
+        Stress {
+            what,
+            geometry,
+            camera,
+            seed,
+            rays,
+        }
+    };
+    match kind {
+        "soups" => [
+            (1, 0.5, 1),
+            (40, 0.5, 2),
+            (2_000, 0.1, 3),
+            (12_000, 0.03, 4),
+        ]
+        .into_iter()
+        .map(|(count, size, seed)| {
+            let g = generate::random_soup(count, size, seed);
+            scene(
+                format!("soup {count}"),
+                g,
+                Vec3::new(0.3, 0.4, -1.0),
+                seed,
+                1_500,
+            )
+        })
+        .collect(),
+        "sphere" => {
+            let g = generate::tessellated_sphere(Vec3::new(1.0, 2.0, 3.0), 2.0, 48, 64);
+            vec![scene(
+                "sphere".into(),
+                g,
+                Vec3::new(0.0, 0.2, -1.0),
+                11,
+                3_000,
+            )]
+        }
+        "grid" => {
+            let g = generate::axis_aligned_grid(6);
+            let oblique = scene(
+                "grid".into(),
+                g.clone(),
+                Vec3::new(0.7, 0.5, -1.0),
+                21,
+                4_000,
+            );
+            // Axis-aligned cameras: rays in lattice planes, along the triangles' edges.
+            let straight = Stress {
+                what: "grid, straight camera".into(),
+                geometry: g,
+                camera: Camera {
+                    eye: Vec3::new(3.0, 3.0, -10.0),
+                    target: Vec3::new(3.0, 3.0, 0.0),
+                    up: Vec3::Y,
+                    vfov_deg: 40.0,
+                },
+                seed: 22,
+                rays: 500,
+            };
+            vec![oblique, straight]
+        }
+        "closed box" => {
+            let g = generate::closed_box(8);
+            vec![scene(
+                "closed box".into(),
+                g,
+                Vec3::new(0.1, 0.1, -0.2),
+                31,
+                3_000,
+            )]
+        }
+        "mixed" => {
+            let g = mixed_primitives();
+            vec![scene(
+                "mixed primitives".into(),
+                g,
+                Vec3::new(0.2, 0.5, -1.0),
+                43,
+                3_000,
+            )]
+        }
+        _ => panic!("no stress scene `{kind}`"),
+    }
+}
+
+/// One `#[test]` per kind of [`stress_scenes`], each calling the test file's own
+/// `check_stress(kind)`.
+#[macro_export]
+macro_rules! stress_tests {
+    () => {
+        #[test]
+        fn random_soups_match_brute_force() {
+            check_stress("soups");
+        }
+
+        #[test]
+        fn tessellated_sphere_matches_brute_force() {
+            check_stress("sphere");
+        }
+
+        #[test]
+        fn axis_aligned_grid_on_split_planes_matches_brute_force() {
+            check_stress("grid");
+        }
+
+        #[test]
+        fn closed_box_matches_brute_force() {
+            check_stress("closed box");
+        }
+
+        #[test]
+        fn spheres_boxes_planes_and_triangles_match_brute_force() {
+            check_stress("mixed");
+        }
+    };
+}

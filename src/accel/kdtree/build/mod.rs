@@ -235,7 +235,7 @@ pub struct BuildStats {
 
 /// Bounds of a bounded primitive, or `None` when it must stay out of the tree: a triangle
 /// no ray can hit (zero area) or anything with non-finite coordinates.
-fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
+pub(crate) fn tree_bounds(g: &Geometry, prims: &Prims, prim: u32) -> Option<Aabb> {
     if let PrimRef::Triangle(t) = g.prim_ref(prim)
         && prims.tris[t as usize].is_degenerate()
     {

@@ -1,0 +1,138 @@
+//! An 8-wide BVH for incoherent rays: each step tests one ray against eight child
+//! boxes in one SIMD register (Embree's BVH8, Wald et al. 2008; Áfra et al. 2016),
+//! and a box ends at its primitives, so a ray that misses an isolated model or leaves
+//! it stops after a few steps where a kd-tree walks every empty cell on its way.
+//!
+//! Layout: `nodes` holds [`Node8`]s, root first; a child word is an inner node's index,
+//! a leaf (`LEAF_BIT`, count - 1 in bits 27-29, first reference below) or `EMPTY`.
+//! A leaf names `slots[first..first + count]`, slots of `prims` (the same [`Prims`] the
+//! kd-tree and the brute-force oracle test, the triangles' records placed in leaf
+//! order). The leaves' triangles are tested in lanes by the kd-tree's own leaf kernel
+//! ([`Prims::intersect_tris_lanes`]), so hits are the brute-force ones bit for bit;
+//! the box test only has to be conservative ([`traverse`]).
+
+mod build;
+pub mod traverse;
+
+use super::{Accel, Prims};
+use crate::geom::Aabb;
+use crate::ray::{Hit, Ray};
+
+/// Most primitives in a leaf: one lane test of eight.
+pub const MAX_LEAF: usize = 8;
+
+/// Marks a leaf's child word.
+pub(crate) const LEAF_BIT: u32 = 1 << 31;
+
+/// The child word of an unused slot (its box is empty and never hit).
+pub(crate) const EMPTY: u32 = u32::MAX;
+
+/// Eight children's boxes, one array of eight per plane (min x, max x, min y, max y,
+/// min z, max z: a ray loads its near and far plane of each axis as one vector), and
+/// their child words.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Node8 {
+    /// `planes[2 * axis]` the minima, `planes[2 * axis + 1]` the maxima.
+    pub planes: [[f32; 8]; 6],
+    /// Child words (see the module docs).
+    pub child: [u32; 8],
+}
+
+impl Node8 {
+    /// No children: every box empty (min +inf, max -inf), so every test fails.
+    pub const EMPTY: Node8 = Node8 {
+        planes: [
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+        ],
+        child: [EMPTY; 8],
+    };
+
+    fn set_child(&mut self, slot: usize, b: &Aabb, word: u32) {
+        for axis in 0..3 {
+            self.planes[2 * axis][slot] = b.min[axis];
+            self.planes[2 * axis + 1][slot] = b.max[axis];
+        }
+        self.child[slot] = word;
+    }
+}
+
+/// An 8-wide BVH over one scene's bounded primitives, the planes tested beside it.
+pub struct Bvh {
+    pub(crate) nodes: Vec<Node8>,
+    pub(crate) slots: Vec<u32>,
+    pub(crate) prims: Prims,
+    bounds: Aabb,
+    /// The largest absolute coordinate of `bounds`: the walks' margin grows with it.
+    pub(crate) coord_max: f32,
+    build_seconds: f64,
+}
+
+impl Bvh {
+    /// The BVH of `g`, built on the current rayon pool.
+    pub fn build(g: &crate::geom::Geometry) -> Bvh {
+        Bvh::build_with(g, true)
+    }
+
+    /// The nodes, root first.
+    pub fn nodes(&self) -> &[Node8] {
+        &self.nodes
+    }
+
+    /// Wall time of the build.
+    pub fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
+    /// Bytes of the nodes, the leaves' slot lists and the TriAccel records.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice())
+            + std::mem::size_of_val(self.slots.as_slice())
+            + std::mem::size_of_val(self.prims.tris.as_slice())
+    }
+
+    /// The slots of leaf word `w`.
+    #[inline(always)]
+    pub(crate) fn leaf(&self, w: u32) -> &[u32] {
+        let first = (w & ((1 << 27) - 1)) as usize;
+        let count = ((w >> 27) & 7) as usize + 1;
+        &self.slots[first..first + count]
+    }
+}
+
+impl Accel for Bvh {
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut hit = [Hit::MISS];
+        self.intersect_stream(std::slice::from_ref(ray), &mut hit);
+        hit[0].is_hit().then_some(hit[0])
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut o = [false];
+        self.occluded_stream(std::slice::from_ref(ray), &mut o);
+        o[0]
+    }
+
+    fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert_eq!(rays.len(), hits.len(), "intersect_stream: one hit per ray");
+        crate::simd::dispatch!(8; self.intersect_rays::<@>(rays, hits))
+    }
+
+    fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_stream: one answer per ray"
+        );
+        crate::simd::dispatch!(8; self.occluded_rays::<@>(rays, occluded))
+    }
+}

@@ -1,0 +1,238 @@
+//! The walk: one ray, eight child boxes per step in one SIMD register, the hit children
+//! pushed farthest first, leaves tested in lanes.
+//!
+//! The box test only decides which leaves a ray tests, so it need not be exact, only
+//! conservative: a box that holds a hit must pass. Boxes are widened by the kd-tree's
+//! margin ([`PLANE_SLACK`] of the largest coordinate of the scene and the origin; its
+//! module docs say why a triangle test can round a ray that far), written into the
+//! origin: `(plane - (org -+ margin)) * (1 / dir)`, whose rounding stays within the
+//! margin. A direction component of zero gives an infinite inverse: the slab is
+//! everything or nothing, and a ray on the widened face itself gives NaN, which the
+//! `max`/`min` order drops (no limit). A component whose distances could overflow is
+//! given a NaN inverse: that axis then limits nothing. The hits come from the leaf
+//! kernel, the scalar test lane for lane, so every answer is brute force's.
+
+use super::{Bvh, LEAF_BIT};
+use crate::accel::kdtree::traverse::PLANE_SLACK;
+use crate::accel::triaccel::max_abs;
+use crate::ray::{Hit, Ray};
+use crate::simd::{Float, LaneMask, Simd, Vf, array_fn, inl};
+
+/// Stack entries: the binary tree's depth is at most 48 SAH levels plus 27 median
+/// levels (2^27 primitives), and each 8-wide node pushes at most seven children.
+const STACK: usize = 7 * 76 + 8;
+
+impl Bvh {
+    /// Every leaf in turn, without a box test: for rays whose distances to the boxes
+    /// could overflow.
+    #[inline(always)]
+    fn every_leaf<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
+        if ANY_HIT {
+            return self.any_hit(&self.slots, ray);
+        }
+        self.prims.intersect_leaf(&self.slots, ray, best);
+        false
+    }
+
+    /// Whether any primitive in `slots` is hit in `(t_min, t_max)` (a plain loop: an
+    /// iterator adapter would be called out of line, compiled for the baseline).
+    #[inline(always)]
+    fn any_hit(&self, slots: &[u32], ray: &Ray) -> bool {
+        for &s in slots {
+            if self.prims.intersect_prim(s, ray, ray.t_max).is_some() {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Closest hits of `rays` into `hits` (misses as [`Hit::MISS`]) with the 8-lane
+    /// backend `W`; inside `W`'s entry.
+    #[inline(always)]
+    pub(crate) fn intersect_rays<W: Simd>(&self, rays: &[Ray], hits: &mut [Hit]) {
+        let mut stack = [(0u32, 0.0f32); STACK];
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            let mut best = Hit::MISS;
+            if ray.is_usable() && !self.nodes.is_empty() {
+                self.walk::<W, false>(ray, &mut best, &mut stack);
+            }
+            self.prims.intersect_planes(ray, &mut best);
+            *hit = best;
+        }
+    }
+
+    /// Any-hit answers of `rays` into `occluded`, as [`Bvh::intersect_rays`].
+    #[inline(always)]
+    pub(crate) fn occluded_rays<W: Simd>(&self, rays: &[Ray], occluded: &mut [bool]) {
+        let mut stack = [(0u32, 0.0f32); STACK];
+        for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
+            let mut unused = Hit::MISS;
+            *o = (ray.is_usable()
+                && !self.nodes.is_empty()
+                && self.walk::<W, true>(ray, &mut unused, &mut stack))
+                || self.prims.planes_occlude(ray);
+        }
+    }
+
+    /// Walks a usable ray from the root: folds the closest hit into `best`, or with
+    /// `ANY_HIT` returns whether anything is hit in `(t_min, t_max)`.
+    #[inline(always)]
+    fn walk<W: Simd, const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        best: &mut Hit,
+        stack: &mut [(u32, f32); STACK],
+    ) -> bool {
+        debug_assert_eq!(W::LANES, 8);
+        let splat = Vf::<W>::splat;
+        let (o, d) = (ray.org, ray.dir);
+        // The kd-tree's margin (its module docs): a triangle test may round a ray onto
+        // a triangle within `margin` of it, so each box is that much wider on every
+        // side, moved into the origin: `(plane - (org -+ margin)) * rcp`.
+        let reach = self.coord_max + max_abs(o);
+        let margin = reach * PLANE_SLACK;
+        // An inverse whose distances could overflow limits nothing (NaN, dropped by
+        // the reductions); a zero component keeps its infinite inverse (everything
+        // or nothing, NaN on the widened face itself).
+        let inv = inl(
+            #[inline(always)]
+            |x: f32| {
+                let r = 1.0 / x;
+                if x == 0.0 || r.abs() * (4.0 * reach) <= f32::MAX {
+                    r
+                } else {
+                    f32::NAN
+                }
+            },
+        );
+        // Axes in the order the reductions take them: the largest direction component
+        // last, so `a.max_gt(acc)` never starts from a NaN.
+        let d_abs = d.abs();
+        let last = if d_abs.x >= d_abs.y && d_abs.x >= d_abs.z {
+            0
+        } else if d_abs.y >= d_abs.z {
+            1
+        } else {
+            2
+        };
+        let axes = [(last + 1) % 3, (last + 2) % 3, last];
+        let rcp_last = inv(d[last]);
+        if rcp_last.is_nan() {
+            // Coordinates near f32::MAX: every leaf, as brute force does.
+            return self.every_leaf::<ANY_HIT>(ray, best);
+        }
+        let sign = axes.map(
+            #[inline(always)]
+            |a| if d[a].is_sign_negative() { -1.0 } else { 1.0 },
+        );
+        let org_near: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |i| splat(o[axes[i]] + margin * sign[i]),
+        );
+        let org_far: [Vf<W>; 3] = array_fn(
+            #[inline(always)]
+            |i| splat(o[axes[i]] - margin * sign[i]),
+        );
+        let rcp = axes.map(
+            #[inline(always)]
+            |a| splat(inv(d[a])),
+        );
+        // The near plane of each axis is the minimum where the ray goes up (+0 too).
+        let near = axes.map(
+            #[inline(always)]
+            |a| 2 * a + d[a].is_sign_negative() as usize,
+        );
+        let far = near.map(
+            #[inline(always)]
+            |k| k ^ 1,
+        );
+        let t_min = splat(ray.t_min);
+        let triangles_only = self.prims.triangles_only();
+        let mut limit = ray.t_max;
+        let mut sp = 0usize;
+        let mut cur = 0u32;
+        loop {
+            if cur & LEAF_BIT == 0 {
+                let node = &self.nodes[cur as usize];
+                let plane = inl(
+                    #[inline(always)]
+                    |k: usize| -> Vf<W> { bytemuck::cast(node.planes[k]) },
+                );
+                let slab = inl(
+                    #[inline(always)]
+                    |i: usize| {
+                        (
+                            (plane(near[i]) - org_near[i]) * rcp[i],
+                            (plane(far[i]) - org_far[i]) * rcp[i],
+                        )
+                    },
+                );
+                let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
+                // `a.max_gt(acc)` keeps `acc` where `a` is NaN.
+                let t_near = t_min.max_gt(n0.max_gt(n1.max_gt(n2)));
+                let t_far = splat(limit).min_lt(f0.min_lt(f1.min_lt(f2)));
+                let mut bits = t_near.cmp_le(t_far).bits();
+                match bits.count_ones() {
+                    0 => {}
+                    1 => {
+                        cur = node.child[bits.trailing_zeros() as usize];
+                        continue;
+                    }
+                    _ => {
+                        let t: [f32; 8] = bytemuck::cast(t_near);
+                        // Insert each hit child so the stack's top run is sorted,
+                        // nearest on top.
+                        let base = sp;
+                        while bits != 0 {
+                            let i = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            let entry = (node.child[i], t[i]);
+                            let mut j = sp;
+                            while j > base && stack[j - 1].1 < entry.1 {
+                                stack[j] = stack[j - 1];
+                                j -= 1;
+                            }
+                            stack[j] = entry;
+                            sp += 1;
+                        }
+                        sp -= 1;
+                        cur = stack[sp].0;
+                        continue;
+                    }
+                }
+            } else {
+                let slots = self.leaf(cur);
+                let hit = if triangles_only {
+                    if slots.len() <= 4 {
+                        self.prims.tris_lanes::<W::X4, ANY_HIT>(slots, ray, best)
+                    } else {
+                        self.prims.tris_lanes::<W, ANY_HIT>(slots, ray, best)
+                    }
+                } else if ANY_HIT {
+                    self.any_hit(slots, ray)
+                } else {
+                    self.prims.intersect_leaf(slots, ray, best);
+                    false
+                };
+                if ANY_HIT && hit {
+                    return true;
+                }
+                if !ANY_HIT {
+                    limit = best.t.min(ray.t_max);
+                }
+            }
+            // Pop the nearest entry that may still hold a closer hit.
+            loop {
+                if sp == 0 {
+                    return false;
+                }
+                sp -= 1;
+                let (n, t) = stack[sp];
+                if t <= limit {
+                    cur = n;
+                    break;
+                }
+            }
+        }
+    }
+}

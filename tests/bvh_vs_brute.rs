@@ -1,0 +1,237 @@
+//! The 8-wide BVH against the brute-force oracle, ray by ray, under every instruction
+//! set this CPU runs: the same closest hit (primitive, `t`, `u`, `v` bit for bit) and
+//! the same any-hit answer, one ray at a time and as a stream. The rays include the
+//! BVH's own weak spots: origins on its boxes' faces and corners, axis-parallel rays
+//! with +0.0 and -0.0 there, subnormal direction components, negative `t_min`, and
+//! unusable rays.
+
+mod common;
+
+use common::{adversarial_rays, camera_rays, hit_bits, random_rays};
+use glam::Vec3;
+use rayon::prelude::*;
+use raypack::accel::Accel;
+use raypack::accel::brute::BruteForce;
+use raypack::accel::bvh::Bvh;
+use raypack::accel::kdtree::KdTree;
+use raypack::ray::{Hit, Ray};
+use raypack::scene::generate::{self, Rng};
+use raypack::scene::{Aabb, Camera, Geometry, Plane};
+
+/// Rays aimed at the BVH's boxes: origins on a face or at a corner of a child box,
+/// axis-parallel along the face with signed zeros, and rays with a subnormal or a
+/// negative-`t_min` twist.
+fn box_rays(bvh: &Bvh, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let boxes: Vec<Aabb> = bvh
+        .nodes()
+        .iter()
+        .flat_map(|n| {
+            (0..8).filter_map(move |s| {
+                let lo = Vec3::new(n.planes[0][s], n.planes[2][s], n.planes[4][s]);
+                let hi = Vec3::new(n.planes[1][s], n.planes[3][s], n.planes[5][s]);
+                lo.is_finite().then(|| Aabb::new(lo, hi))
+            })
+        })
+        .collect();
+    let mut rays = Vec::with_capacity(count);
+    if boxes.is_empty() {
+        return rays;
+    }
+    while rays.len() < count {
+        let b = boxes[rng.below(boxes.len() as u32) as usize];
+        let mut org = rng.point(b.min, b.max);
+        let axis = rng.below(3) as usize;
+        org[axis] = if rng.below(2) == 0 {
+            b.min[axis]
+        } else {
+            b.max[axis]
+        };
+        let mut dir = rng.unit_vector();
+        match rays.len() % 5 {
+            0 => dir[axis] = if rng.below(2) == 0 { 0.0 } else { -0.0 },
+            1 => {
+                org = if rng.below(2) == 0 { b.min } else { b.max };
+                dir = -dir;
+            }
+            2 => dir[(axis + 1) % 3] = f32::from_bits(1 + rng.below(1 << 20)),
+            _ => {}
+        }
+        let t_min = if rays.len() % 7 == 0 {
+            -rng.range(0.0, 2.0) * b.diagonal()
+        } else {
+            0.0
+        };
+        rays.push(Ray::new(org, dir, t_min, f32::INFINITY));
+    }
+    rays.push(Ray::new(Vec3::splat(f32::NAN), Vec3::X, 0.0, f32::INFINITY));
+    rays.push(Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, f32::INFINITY));
+    rays.push(Ray::new(Vec3::ZERO, Vec3::X, 1.0, 0.5));
+    rays
+}
+
+/// Brute force's closest hit of a ray, and the any-hit answers of the ray cut short
+/// before, at and after it.
+type Answers = (Option<Hit>, [(Ray, bool); 3]);
+
+/// [`Answers`] of each ray.
+fn oracle(brute: &BruteForce, rays: &[Ray]) -> Vec<Answers> {
+    rays.par_iter()
+        .enumerate()
+        .map(|(i, ray)| {
+            let hit = brute.intersect(ray);
+            let t = hit.map_or(1.0, |h| h.t);
+            let cut = 0.2 + 0.7 * ((i * 7919) % 1000) as f32 / 1000.0;
+            let shadows = [t * cut, t, t * (1.0 + cut)].map(|t_max| {
+                let s = Ray { t_max, ..*ray };
+                (s, brute.occluded(&s))
+            });
+            (hit, shadows)
+        })
+        .collect()
+}
+
+/// Builds the BVH of `g` and compares it with brute force on random, adversarial,
+/// box and camera rays under every instruction set, ray by ray and as streams.
+fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what: &str) {
+    let bvh = Bvh::build(g);
+    let brute = BruteForce::new(g);
+    let b = g.bounds();
+    let b = if b.is_empty() {
+        Aabb::new(Vec3::splat(-1.0), Vec3::ONE)
+    } else {
+        b
+    };
+    let mut rays = random_rays(b.min, b.max, ray_count, seed);
+    rays.extend(adversarial_rays(&KdTree::build(g), g, ray_count, seed + 1));
+    rays.extend(box_rays(&bvh, ray_count, seed + 2));
+    rays.extend(camera_rays(camera, 64, 48, 1));
+    let want = oracle(&brute, &rays);
+    let shadows: Vec<Ray> = want.iter().flat_map(|w| w.1.map(|s| s.0)).collect();
+    common::each_isa(|| {
+        let isa = raypack::simd::Isa::in_use();
+        let mut hits = vec![Hit::MISS; rays.len()];
+        bvh.intersect_stream(&rays, &mut hits);
+        let mut occluded = vec![false; shadows.len()];
+        bvh.occluded_stream(&shadows, &mut occluded);
+        let mut hit_count = 0;
+        for (i, (ray, (hit, cuts))) in rays.iter().zip(&want).enumerate() {
+            let one = bvh.intersect(ray);
+            assert_eq!(
+                hit_bits(one),
+                hit_bits(*hit),
+                "{what} ({isa}): ray {i} {ray:?}\n  bvh   {one:?}\n  brute {hit:?}"
+            );
+            assert_eq!(
+                hit_bits(hits[i].is_hit().then_some(hits[i])),
+                hit_bits(*hit),
+                "{what} ({isa}): ray {i} {ray:?} as a stream"
+            );
+            hit_count += hit.is_some() as usize;
+            for (k, (shadow, blocked)) in cuts.iter().enumerate() {
+                assert_eq!(
+                    bvh.occluded(shadow),
+                    *blocked,
+                    "{what} ({isa}): shadow ray {i} {shadow:?}"
+                );
+                assert_eq!(
+                    occluded[3 * i + k],
+                    *blocked,
+                    "{what} ({isa}): shadow ray {i} {shadow:?} as a stream"
+                );
+            }
+        }
+        if g.bounded_count() > 0 {
+            assert!(
+                hit_count > rays.len() / 20,
+                "{what}: only {hit_count} hits, rays miss the scene"
+            );
+        }
+    });
+}
+
+// One test per kind of stress scene, each through `check_stress`.
+crate::stress_tests!();
+
+/// [`check_scene`] on each of [`common::stress_scenes`]`(kind)`.
+fn check_stress(kind: &str) {
+    for s in common::stress_scenes(kind) {
+        check_scene(&s.geometry, &s.camera, s.seed, s.rays, &s.what);
+    }
+}
+
+#[test]
+fn every_shipped_scene_matches_brute_force() {
+    for (i, path) in common::shipped_scenes().iter().enumerate() {
+        let scene =
+            raypack::scene::file::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        check_scene(
+            &scene.geometry,
+            &scene.camera,
+            200 + i as u64,
+            1_000,
+            &path.display().to_string(),
+        );
+    }
+}
+
+#[test]
+fn bunny_matches_brute_force() {
+    require_scenes!();
+    let (g, camera) = common::shared_scene("bunny");
+    check_scene(&g, &camera, 51, 2_000, "bunny");
+}
+
+#[test]
+fn empty_and_planes_only_scenes() {
+    let mut g = Geometry::default();
+    let camera = Camera {
+        eye: Vec3::new(0.0, 1.0, -5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov_deg: 60.0,
+    };
+    let bvh = Bvh::build(&g);
+    assert!(bvh.nodes().is_empty());
+    assert!(bvh.intersect(&camera_rays(&camera, 4, 4, 1)[0]).is_none());
+    g.planes.push(Plane {
+        normal: Vec3::Y,
+        offset: 0.0,
+    });
+    let bvh = Bvh::build(&g);
+    let brute = BruteForce::new(&g);
+    let rays = camera_rays(&camera, 32, 32, 1);
+    let hits = rays.iter().filter(|r| bvh.intersect(r).is_some()).count();
+    assert!(hits > 0 && hits < rays.len());
+    for r in &rays {
+        assert_eq!(hit_bits(bvh.intersect(r)), hit_bits(brute.intersect(r)));
+        assert_eq!(bvh.occluded(r), brute.occluded(r));
+    }
+}
+
+/// The build does not depend on the number of threads: a one-thread pool and the
+/// global pool give the same nodes, bit for bit.
+#[test]
+fn parallel_build_equals_serial() {
+    let g = generate::random_soup(30_000, 0.02, 9);
+    let serial = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| Bvh::build(&g));
+    let parallel = Bvh::build(&g);
+    let bits = |b: &Bvh| -> Vec<u32> {
+        b.nodes()
+            .iter()
+            .flat_map(|n| {
+                n.planes
+                    .iter()
+                    .flatten()
+                    .map(|x| x.to_bits())
+                    .chain(n.child)
+            })
+            .collect()
+    };
+    assert!(serial.nodes().len() > 100);
+    assert_eq!(bits(&serial), bits(&parallel));
+}
