@@ -27,7 +27,7 @@ import tempfile
 def bench(binary, env, scene, args, out):
     label, _, arg = scene.partition("=")
     cmd = [binary, "bench", arg or label, "--modes", args.modes, "--sets", args.sets,
-           "--threads", "1", "--repeat", str(args.repeat), "--json", out]
+           "--threads", "1", "--repeat", str(args.repeat), "--accel", args.accel, "--json", out]
     if args.rays:
         cmd += ["--rays", os.path.join(args.rays, label)]
     full_env = dict(os.environ)
@@ -61,6 +61,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=5, help="passes per bench run")
     ap.add_argument("--rays", help="folder of ray sets, one subfolder per scene")
+    ap.add_argument("--accel", default="kdtree", help="the accelerator both time (kdtree, bvh8)")
     args = ap.parse_args()
     env_a, env_b = parse_env(args.env_a), parse_env(args.env_b)
     ratios = []

@@ -18,9 +18,28 @@ use crate::accel::triaccel::max_abs;
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Simd, Vf, array_fn, inl};
 
+/// The boxes' margin relative to the largest coordinate: twice the kd-tree's
+/// [`PLANE_SLACK`], half for the triangle test's rounding and half for the box test's
+/// own (a fused or an unfused distance, the inverse's rounding).
+const BOX_SLACK: f32 = 2.0 * PLANE_SLACK;
+
 /// Stack entries: the binary tree's depth is at most 48 SAH levels plus 27 median
 /// levels (2^27 primitives), and each 8-wide node pushes at most seven children.
 const STACK: usize = 7 * 76 + 8;
+
+/// A ray's box-test set-up ([`Bvh::walk`]): per axis in reduction order, the origin
+/// moved by the margin toward the near and the far plane, the same as offsets
+/// `-(org * rcp)`, the inverse direction, and the rows of the near and far planes.
+#[derive(Clone, Copy)]
+struct Setup<W: Simd> {
+    org_near: [Vf<W>; 3],
+    org_far: [Vf<W>; 3],
+    off_near: [Vf<W>; 3],
+    off_far: [Vf<W>; 3],
+    rcp: [Vf<W>; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
 
 impl Bvh {
     /// Every leaf in turn, without a box test: for rays whose distances to the boxes
@@ -90,7 +109,7 @@ impl Bvh {
         // a triangle within `margin` of it, so each box is that much wider on every
         // side, moved into the origin: `(plane - (org -+ margin)) * rcp`.
         let reach = self.coord_max + max_abs(o);
-        let margin = reach * PLANE_SLACK;
+        let margin = reach * BOX_SLACK;
         // An inverse whose distances could overflow limits nothing (NaN, dropped by
         // the reductions); a zero component keeps its infinite inverse (everything
         // or nothing, NaN on the widened face itself).
@@ -125,27 +144,70 @@ impl Bvh {
             #[inline(always)]
             |a| if d[a].is_sign_negative() { -1.0 } else { 1.0 },
         );
-        let org_near: [Vf<W>; 3] = array_fn(
+        let rcp_s = axes.map(
             #[inline(always)]
-            |i| splat(o[axes[i]] + margin * sign[i]),
+            |a| inv(d[a]),
         );
-        let org_far: [Vf<W>; 3] = array_fn(
+        let org_near = array_fn(
             #[inline(always)]
-            |i| splat(o[axes[i]] - margin * sign[i]),
+            |i| o[axes[i]] + margin * sign[i],
         );
-        let rcp = axes.map(
+        let org_far = array_fn(
             #[inline(always)]
-            |a| splat(inv(d[a])),
+            |i| o[axes[i]] - margin * sign[i],
         );
         // The near plane of each axis is the minimum where the ray goes up (+0 too).
         let near = axes.map(
             #[inline(always)]
             |a| 2 * a + d[a].is_sign_negative() as usize,
         );
-        let far = near.map(
-            #[inline(always)]
-            |k| k ^ 1,
-        );
+        let setup = Setup {
+            org_near: org_near.map(splat),
+            org_far: org_far.map(splat),
+            off_near: array_fn(
+                #[inline(always)]
+                |i| splat(-(org_near[i] * rcp_s[i])),
+            ),
+            off_far: array_fn(
+                #[inline(always)]
+                |i| splat(-(org_far[i] * rcp_s[i])),
+            ),
+            rcp: rcp_s.map(splat),
+            near,
+            far: near.map(
+                #[inline(always)]
+                |k| k ^ 1,
+            ),
+        };
+        if rcp_s[0].is_finite() && rcp_s[1].is_finite() {
+            self.descend::<W, ANY_HIT, true>(ray, best, stack, &setup)
+        } else {
+            self.descend::<W, ANY_HIT, false>(ray, best, stack, &setup)
+        }
+    }
+
+    /// The walk of [`Bvh::walk`] from the root with `setup`. `FUSED` when every inverse
+    /// is finite: a distance is then `plane * rcp + off` (one fused multiply-add where
+    /// the set has it); else `(plane - org) * rcp`, which keeps a zero component's
+    /// slab exact.
+    #[inline(always)]
+    fn descend<W: Simd, const ANY_HIT: bool, const FUSED: bool>(
+        &self,
+        ray: &Ray,
+        best: &mut Hit,
+        stack: &mut [(u32, f32); STACK],
+        setup: &Setup<W>,
+    ) -> bool {
+        let splat = Vf::<W>::splat;
+        let Setup {
+            org_near,
+            org_far,
+            off_near,
+            off_far,
+            rcp,
+            near,
+            far,
+        } = *setup;
         let t_min = splat(ray.t_min);
         let triangles_only = self.prims.triangles_only();
         let mut limit = ray.t_max;
@@ -161,10 +223,17 @@ impl Bvh {
                 let slab = inl(
                     #[inline(always)]
                     |i: usize| {
-                        (
-                            (plane(near[i]) - org_near[i]) * rcp[i],
-                            (plane(far[i]) - org_far[i]) * rcp[i],
-                        )
+                        if FUSED {
+                            (
+                                plane(near[i]).mul_add_fast(rcp[i], off_near[i]),
+                                plane(far[i]).mul_add_fast(rcp[i], off_far[i]),
+                            )
+                        } else {
+                            (
+                                (plane(near[i]) - org_near[i]) * rcp[i],
+                                (plane(far[i]) - org_far[i]) * rcp[i],
+                            )
+                        }
                     },
                 );
                 let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
