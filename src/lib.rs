@@ -50,8 +50,9 @@
 //! - [`render`] (shading, sampling, tiles, the film) and, beside it, [`rayset`] (the
 //!   RAYS.md files, the standard ray sets, the benchmark kernel); neither imports the
 //!   other;
-//! - [`accel`]: the intersection interface, brute force (the oracle), TriAccel and the
-//!   kd-tree with scalar and packet traversal; and, beside it, [`scene`]: materials,
+//! - [`accel`]: the intersection interface, brute force (the oracle), TriAccel, the
+//!   kd-tree with scalar and packet traversal, and the 8-wide BVH for incoherent rays;
+//!   and, beside it, [`scene`]: materials,
 //!   lights, camera, textures, TOML and OBJ loading, scenes by name. Neither imports the
 //!   other, so the accelerators build and test without the loaders;
 //! - [`geom`]: the primitives and bounds both of them share;

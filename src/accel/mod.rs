@@ -2,8 +2,10 @@
 //!
 //! As in pbrt-v4, an accelerator answers `bounds`, closest-hit `intersect` and any-hit
 //! `occluded`, for single rays, for packets and for streams of unrelated rays. [`brute::BruteForce`] tests every
-//! primitive and is the oracle; [`kdtree::KdTree`] is the fast path. Both hold the same
-//! [`Prims`] records, so a disagreement points at traversal, not at a primitive test.
+//! primitive and is the oracle; [`kdtree::KdTree`] is the fast path, and
+//! [`bvh::Bvh`] a second one for incoherent rays (eight boxes per step, boxes that end at
+//! the surface). All hold the same [`Prims`] records, so a disagreement points at
+//! traversal, not at a primitive test.
 //!
 //! [`Prims`] and its scalar tests live in [`prims`]; its packet twins in
 //! [`prims_packet`]; the lane test of a leaf's triangles in [`triaccel_leaf`]; the
