@@ -247,7 +247,10 @@ fn leaf_word(first: u32, count: u32) -> u32 {
 
 impl Bvh {
     /// Builds the BVH of `g`'s bounded primitives (the triangles' records placed in
-    /// leaf order), on the current rayon pool when `parallel`.
+    /// leaf order), on the current rayon pool when `parallel`. Degenerate triangles
+    /// and non-finite primitives stay out, as in the kd-tree.
+    ///
+    /// Panics on more than 2^27 bounded primitives (a leaf word's 27 bits).
     pub fn build_with(g: &Geometry, parallel: bool) -> Bvh {
         use crate::accel::occupancy::Meter;
         let meter = Meter::OFF;
