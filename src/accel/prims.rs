@@ -180,6 +180,19 @@ impl Prims {
         }
     }
 
+    /// Whether any primitive in slots `prims` is hit in `(t_min, t_max)`: the any-hit
+    /// twin of [`Prims::intersect_leaf`]. A loop, not `Iterator::any`, which LLVM may
+    /// keep out of line (see [`crate::simd::inl`]).
+    #[inline(always)]
+    pub fn occludes_leaf(&self, prims: &[u32], ray: &Ray) -> bool {
+        for &p in prims {
+            if self.intersect_prim(p, ray, ray.t_max).is_some() {
+                return true;
+            }
+        }
+        false
+    }
+
     /// Folds the planes into `best` (closest-hit order of [`Hit::is_closer`]). A ray
     /// that is not [`Ray::is_usable`] hits no plane: `best.t.min(NaN)` would otherwise
     /// drop a NaN `t_max` and let the plane through (the packet twin's `min` keeps it).

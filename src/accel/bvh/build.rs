@@ -142,14 +142,7 @@ fn partition(refs: &mut [Ref], bounds: &Aabb, cb: &Aabb, depth: u32) -> Option<u
         return None;
     }
     // Equal centroids, or too deep: the object median on the longest centroid axis.
-    let ext = cb.max - cb.min;
-    let axis = if ext.x >= ext.y && ext.x >= ext.z {
-        0
-    } else if ext.y >= ext.z {
-        1
-    } else {
-        2
-    };
+    let axis = (cb.max - cb.min).max_position();
     let mid = n / 2;
     refs.select_nth_unstable_by(mid, |a, b| {
         (a.centroid()[axis], a.prim)
@@ -253,10 +246,9 @@ impl Bvh {
     /// Panics on more than 2^27 bounded primitives (a leaf word's 27 bits).
     pub fn build_with(g: &Geometry, parallel: bool) -> Bvh {
         use crate::accel::occupancy::Meter;
-        let meter = Meter::OFF;
         use rayon::prelude::*;
         let start = std::time::Instant::now();
-        let mut prims = Prims::with(g, parallel, meter);
+        let mut prims = Prims::with(g, parallel, Meter::OFF);
         let bounded = g.bounded_count();
         assert!(bounded < 1 << 27, "BVH: more than 2^27 primitives");
         let make = |p: u32| {
@@ -299,7 +291,7 @@ impl Bvh {
         for (s, &t) in order.iter().enumerate() {
             slot_of[t as usize] = s as u32;
         }
-        prims.reorder_triangles(&order, parallel, meter);
+        prims.reorder_triangles(&order, parallel, Meter::OFF);
         let slots = refs
             .iter()
             .map(|r| {
@@ -318,8 +310,7 @@ impl Bvh {
             coord_max: if refs.is_empty() {
                 0.0
             } else {
-                crate::accel::triaccel::max_abs(bounds.min)
-                    .max(crate::accel::triaccel::max_abs(bounds.max))
+                crate::accel::kdtree::traverse::box_coord_max(&bounds)
             },
             build_seconds: start.elapsed().as_secs_f64(),
         }

@@ -47,7 +47,7 @@ impl Bvh {
     #[inline(always)]
     fn every_leaf<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
         if ANY_HIT {
-            return self.any_hit(&self.slots, ray);
+            return self.prims.occludes_leaf(&self.slots, ray);
         }
         self.prims.intersect_leaf(&self.slots, ray, best);
         false
@@ -69,18 +69,6 @@ impl Bvh {
                 crate::simd::prefetch(tri);
             }
         }
-    }
-
-    /// Whether any primitive in `slots` is hit in `(t_min, t_max)` (a plain loop: an
-    /// iterator adapter would be called out of line, compiled for the baseline).
-    #[inline(always)]
-    fn any_hit(&self, slots: &[u32], ray: &Ray) -> bool {
-        for &s in slots {
-            if self.prims.intersect_prim(s, ray, ray.t_max).is_some() {
-                return true;
-            }
-        }
-        false
     }
 
     /// Closest hits of `rays` into `hits` (misses as [`Hit::MISS`]) with the 8-lane
@@ -144,14 +132,7 @@ impl Bvh {
         );
         // Axes in the order the reductions take them: the largest direction component
         // last, so `a.max_gt(acc)` never starts from a NaN.
-        let d_abs = d.abs();
-        let last = if d_abs.x >= d_abs.y && d_abs.x >= d_abs.z {
-            0
-        } else if d_abs.y >= d_abs.z {
-            1
-        } else {
-            2
-        };
+        let last = d.abs().max_position();
         let axes = [(last + 1) % 3, (last + 2) % 3, last];
         let rcp_last = inv(d[last]);
         if rcp_last.is_nan() {
@@ -297,7 +278,7 @@ impl Bvh {
                         self.prims.tris_lanes::<W, ANY_HIT>(slots, ray, best)
                     }
                 } else if ANY_HIT {
-                    self.any_hit(slots, ray)
+                    self.prims.occludes_leaf(slots, ray)
                 } else {
                     self.prims.intersect_leaf(slots, ray, best);
                     false

@@ -528,7 +528,7 @@ pub fn clip_to_box(b: &Aabb, ray: &Ray, inv_dir: Vec3) -> Option<(f32, f32)> {
 /// so the box and plane margins are scaled by it, not by the coordinates of their own
 /// axis alone.
 #[inline(always)]
-pub(super) fn box_coord_max(b: &Aabb) -> f32 {
+pub(crate) fn box_coord_max(b: &Aabb) -> f32 {
     max_abs(b.min).max(max_abs(b.max))
 }
 
