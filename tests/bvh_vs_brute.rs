@@ -1,6 +1,7 @@
 //! The 8-wide BVH against the brute-force oracle, ray by ray, under every instruction
 //! set this CPU runs: the same closest hit (primitive, `t`, `u`, `v` bit for bit) and
-//! the same any-hit answer, one ray at a time and as a stream. The rays include the
+//! the same any-hit answer, one ray at a time, as a stream and in packets of 4, 8 and
+//! 16 lanes. The rays include the
 //! BVH's own weak spots: origins on its boxes' faces and corners, axis-parallel rays
 //! with +0.0 and -0.0 there, subnormal direction components, negative `t_min`, and
 //! unusable rays.
@@ -10,13 +11,14 @@ mod common;
 use common::{adversarial_rays, camera_rays, hit_bits, random_rays};
 use glam::Vec3;
 use rayon::prelude::*;
-use raypack::accel::Accel;
 use raypack::accel::brute::BruteForce;
 use raypack::accel::bvh::Bvh;
 use raypack::accel::kdtree::KdTree;
+use raypack::accel::{Accel, PacketWidth};
 use raypack::ray::{Hit, Ray};
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane};
+use raypack::simd::{Simd, W4, W8, W16};
 
 /// Rays aimed at the BVH's boxes: origins on a face or at a corner of a child box,
 /// axis-parallel along the face with signed zeros, and rays with a subnormal or a
@@ -146,6 +148,143 @@ fn check_scene(g: &Geometry, camera: &Camera, seed: u64, ray_count: usize, what:
                 hit_count > rays.len() / 20,
                 "{what}: only {hit_count} hits, rays miss the scene"
             );
+        }
+    });
+    let packet_seed = seed + 3;
+    let check = (
+        &bvh,
+        &brute,
+        rays.as_slice(),
+        want.as_slice(),
+        camera,
+        packet_seed,
+        what,
+    );
+    std::thread::scope(|s| {
+        s.spawn(|| check_packets::<W4>(check));
+        s.spawn(|| check_packets::<W8>(check));
+        check_packets::<W16>(check);
+    });
+}
+
+/// Packets of width `W` for the packet walk, as indices into `rays` followed by the
+/// new rays returned (`None` lanes inactive, full of NaN): `rays` a width at a time
+/// with some lanes inactive (mostly mixed octants, so most go one ray at a time);
+/// camera blocks; and fans, each of one ray of `rays` and copies of it with every
+/// nonzero direction component scaled by up to 2% (the same octant, the same zero
+/// components, so they walk as one group: origins on box faces, signed zeros,
+/// subnormal components), some cut shorter.
+fn packets<W: Simd>(
+    rays: &[Ray],
+    camera: &Camera,
+    seed: u64,
+) -> (Vec<Vec<Option<usize>>>, Vec<Ray>) {
+    let mut rng = Rng::new(seed);
+    let mut out: Vec<Vec<Option<usize>>> = (0..rays.len())
+        .step_by(W::LANES)
+        .map(|first| {
+            (first..first + W::LANES)
+                .map(|i| Some(i).filter(|&i| i < rays.len() && rng.below(5) != 0))
+                .collect()
+        })
+        .collect();
+    let mut extra = Vec::new();
+    let mut add = |lanes: Vec<Option<Ray>>| {
+        out.push(
+            lanes
+                .into_iter()
+                .map(|r| {
+                    r.map(|r| {
+                        extra.push(r);
+                        rays.len() + extra.len() - 1
+                    })
+                })
+                .collect(),
+        )
+    };
+    let frame = camera.frame(64, 48);
+    let (bw, bh) = raypack::scene::camera::block_shape::<W>();
+    for y in (0..48 - bh + 1).step_by(bh as usize) {
+        for x in (0..64 - bw + 1).step_by(bw as usize) {
+            add(frame.block_rays::<W>(x, y).into_iter().map(Some).collect());
+        }
+    }
+    for base in rays.iter().step_by(rays.len() / 250 + 1) {
+        add((0..W::LANES)
+            .map(|i| {
+                if i == 0 {
+                    return Some(*base);
+                }
+                let mut r = *base;
+                for a in 0..3 {
+                    r.dir[a] *= 1.0 + rng.range(-0.02, 0.02);
+                }
+                if rng.below(4) == 0 {
+                    r.t_max = rng.range(0.0, 2.0);
+                }
+                Some(r).filter(|_| rng.below(8) != 0)
+            })
+            .collect());
+    }
+    (out, extra)
+}
+
+/// The packet walk at width `W` against brute force under every instruction set: each
+/// active lane's closest hit bit for bit, and the any-hit answers of its ray cut short
+/// before, at and after its hit ([`oracle`]); inactive lanes neither hit nor are
+/// occluded. `want` holds the answers of `rays`.
+fn check_packets<W: PacketWidth>(
+    (bvh, brute, rays, want, camera, seed, what): (
+        &Bvh,
+        &BruteForce,
+        &[Ray],
+        &[Answers],
+        &Camera,
+        u64,
+        &str,
+    ),
+) {
+    let (packets, extra) = packets::<W>(rays, camera, seed);
+    let all: Vec<Ray> = rays.iter().chain(&extra).copied().collect();
+    let want: Vec<Answers> = want.iter().copied().chain(oracle(brute, &extra)).collect();
+    common::each_isa(|| {
+        let what = format!(
+            "{what} ({}, {} lanes)",
+            raypack::simd::Isa::in_use(),
+            W::LANES
+        );
+        for (n, lanes) in packets.iter().enumerate() {
+            let rays: Vec<Option<Ray>> = lanes.iter().map(|i| i.map(|i| all[i])).collect();
+            let got = W::intersect(bvh, &common::packet::<W>(&rays));
+            let occluded = [0, 1, 2].map(|k| {
+                let cut: Vec<Option<Ray>> =
+                    lanes.iter().map(|i| i.map(|i| want[i].1[k].0)).collect();
+                W::occluded(bvh, &common::packet::<W>(&cut))
+            });
+            for (i, lane) in lanes.iter().enumerate() {
+                let hit = got.lane(i);
+                let Some(j) = *lane else {
+                    assert!(!hit.is_hit(), "{what}: inactive lane {i} of packet {n} hit");
+                    for o in occluded {
+                        assert_eq!(o & (1 << i), 0, "{what}: inactive lane {i} occluded");
+                    }
+                    continue;
+                };
+                let (closest, cuts) = want[j];
+                assert_eq!(
+                    hit_bits(hit.is_hit().then_some(hit)),
+                    hit_bits(closest),
+                    "{what}: packet {n} lane {i} {:?}",
+                    all[j]
+                );
+                for (k, (shadow, blocked)) in cuts.iter().enumerate() {
+                    assert_eq!(
+                        occluded[k] & (1 << i) != 0,
+                        *blocked,
+                        "{what}: packet {n} lane {i} cut {k}: {shadow:?}"
+                    );
+                }
+            }
         }
     });
 }

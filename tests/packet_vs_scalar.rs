@@ -18,10 +18,10 @@
 
 mod common;
 
-use common::hit_bits;
 use common::{
     adversarial_rays, camera_rays, looking_at, mixed_primitives, random_rays, shared_scene,
 };
+use common::{hit_bits, packet};
 use glam::Vec3;
 use raypack::accel::Accel;
 use raypack::accel::PacketWidth;
@@ -63,31 +63,6 @@ impl Draw for Rng {
         let mut d = Vec3::new(self.zero(), self.zero(), self.zero());
         d[axis] = if self.below(2) == 0 { 1.0 } else { -1.0 };
         d
-    }
-}
-
-/// A packet whose lane `i` is `rays[i]`, or inactive and full of NaN (also past the
-/// end of `rays`).
-fn packet<W: Simd>(rays: &[Option<Ray>]) -> RayPacket<W> {
-    assert!(rays.len() <= W::LANES);
-    let get = |f: &dyn Fn(&Ray) -> f32| {
-        Vf::<W>::from_fn(|i| rays.get(i).copied().flatten().as_ref().map_or(f32::NAN, f))
-    };
-    let org = [0, 1, 2].map(|a| get(&|r| r.org[a]));
-    let dir = [0, 1, 2].map(|a| get(&|r| r.dir[a]));
-    let mut active = 0;
-    for (i, r) in rays.iter().enumerate() {
-        if r.is_some() {
-            active |= 1 << i;
-        }
-    }
-    RayPacket {
-        org,
-        dir,
-        inv_dir: dir.map(|d| Vf::<W>::ONE / d),
-        t_min: get(&|r| r.t_min),
-        t_max: get(&|r| r.t_max),
-        active: Mask::<W>::from_bits(active),
     }
 }
 

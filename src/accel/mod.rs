@@ -20,6 +20,7 @@ pub mod occupancy;
 pub mod packet;
 pub mod prims;
 pub mod prims_packet;
+mod stack;
 pub mod triaccel;
 pub mod triaccel_leaf;
 pub mod triaccel_packet;

@@ -427,3 +427,47 @@ fn write_as<B: Simd, W: Simd>(hits: &HitPacket<W>, out: &mut [Hit]) {
     let prim = Vf::<B>::from_bits(hits.prim);
     Vf::<B>::transpose4_into([hits.t, hits.u, hits.v, prim], Hit::as_records_mut(out));
 }
+
+/// Traces the lanes `bits` of `rays` one at a time through `trace(ray, hit)` (a single
+/// walk that folds the closest hit into `hit`, or with `ANY_HIT` returns whether the ray
+/// is occluded), and puts their answers into `best`'s lanes or `occluded`: the packet
+/// walks' way out for lanes a packet step would not pay for.
+#[inline(always)]
+pub(crate) fn trace_lanes_alone<W: Simd, const ANY_HIT: bool>(
+    rays: &RayPacket<W>,
+    mut bits: LaneBits,
+    best: &mut HitPacket<W>,
+    occluded: &mut Mask<W>,
+    mut trace: impl FnMut(&Ray, &mut Hit) -> bool,
+) {
+    if bits == 0 {
+        return;
+    }
+    let mut alone = [None; MAX_LANES];
+    let mut hit_bits = 0;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        if let Some(ray) = rays.lane(i) {
+            let mut hit = Hit::MISS;
+            if trace(&ray, &mut hit) {
+                hit_bits |= 1 << i;
+            }
+            alone[i] = Some(hit);
+        }
+    }
+    if ANY_HIT {
+        *occluded |= Mask::<W>::from_bits(hit_bits);
+    } else {
+        let grouped = *best;
+        *best = HitPacket::from_lanes(
+            #[inline(always)]
+            |i| {
+                alone[i].unwrap_or_else(
+                    #[inline(always)]
+                    || grouped.lane(i),
+                )
+            },
+        );
+    }
+}

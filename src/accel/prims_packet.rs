@@ -8,7 +8,7 @@
 use super::Prims;
 use super::packet::{HitPacket, LaneHits, RayPacket};
 use crate::geom::{Aabb, Plane, Sphere};
-use crate::simd::{AMap, Float, LaneMask, Mask, Simd, Vf};
+use crate::simd::{AMap, Float, LaneMask, Mask, Simd, Uint, Vf, array_fn, prefetch};
 
 /// `a . b` in glam's order: `(x + y) + z`.
 #[inline(always)]
@@ -193,4 +193,89 @@ impl Prims {
         }
         hit
     }
+
+    /// The primitives `prims` of a leaf against the lanes `lanes[g]` of each group
+    /// `rays(g)`: one group for a packet, several for a tile (traverse_tile.rs). It goes
+    /// primitive by primitive, so each record is loaded once for all groups and the
+    /// groups' tests, independent of one another, overlap; each group sees the
+    /// primitives in the leaf's order, so its answers do not depend on the others.
+    /// Closest hit: folds group `g`'s hits into `best[g]` (in [`Hit::is_closer`]
+    /// order). With `ANY_HIT`: adds to `occluded[g]` the lanes that hit anything in
+    /// `(t_min, t_max)`, each lane leaving at its first hit. `count(n)` is told of
+    /// every `n` primitive tests (the kd-tree's statistics).
+    #[inline(always)]
+    pub(crate) fn leaf_groups<'r, W: Simd, const G: usize, const ANY_HIT: bool>(
+        &self,
+        prims: &[u32],
+        rays: impl Fn(usize) -> &'r RayPacket<W>,
+        lanes: &[Mask<W>; G],
+        best: &mut [HitPacket<W>],
+        occluded: &mut [Mask<W>],
+        count: impl Fn(u64),
+    ) {
+        let (best, occluded) = (&mut best[..G], &mut occluded[..G]);
+        if ANY_HIT {
+            let mut live = *lanes;
+            for &p in prims {
+                let mut any = Mask::<W>::NONE;
+                for g in 0..G {
+                    if live[g].any() {
+                        count(1);
+                        let hits = self.intersect_prim_packet(p, rays(g), live[g], rays(g).t_max);
+                        occluded[g] |= hits.mask;
+                        live[g] &= !hits.mask;
+                        any |= live[g];
+                    }
+                }
+                if any.none() {
+                    break;
+                }
+            }
+        } else {
+            // Lanes near an edge need the triangle's corners (the exact rule,
+            // triaccel.rs), which sit apart from its record: ask for them now, while
+            // the leaf's tests run.
+            for &p in prims {
+                if let Some(c) = self.corners.get(p as usize) {
+                    prefetch(c);
+                }
+            }
+            let mut limit: [Vf<W>; G] = array_fn(
+                #[inline(always)]
+                |g| next_up(best[g].t).min(rays(g).t_max),
+            );
+            let groups = lanes
+                .iter()
+                .filter(
+                    #[inline(always)]
+                    |l| l.any(),
+                )
+                .count() as u64;
+            count(groups * prims.len() as u64);
+            for &p in prims {
+                let id = self.id(p);
+                for g in 0..G {
+                    if lanes[g].any() {
+                        let hits = self.intersect_prim_packet(p, rays(g), lanes[g], limit[g]);
+                        if best[g].merge(&hits, id).any() {
+                            limit[g] = next_up(best[g].t).min(rays(g).t_max);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The smallest float above each lane (`f32::next_up`), used for the scalar path's
+/// leaf limit `next_up(best.t)`.
+#[inline(always)]
+pub(crate) fn next_up<F: Float>(v: F) -> F {
+    let b = v.to_bits();
+    let one = F::U::splat(1);
+    let up = F::from_bits(b + one);
+    let down = F::from_bits(b - one);
+    let pos = v.cmp_gt(F::ZERO) & v.cmp_lt(F::splat(f32::INFINITY));
+    let r = F::select(pos, up, F::select(v.cmp_lt(F::ZERO), down, v));
+    F::select(v.cmp_eq(F::ZERO), F::from_bits(one), r)
 }

@@ -88,9 +88,10 @@ pub struct Args {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// The accelerator to time: kdtree (the SAH kd-tree, every mode) or bvh8 (the 8-wide
-    /// BVH for incoherent rays; its stream mode walks one ray at a time, eight boxes per
-    /// step, and the packet and tile modes trace their rays one by one). The ray sets are
-    /// made with the kd-tree either way.
+    /// BVH: its stream mode walks one ray at a time, eight boxes per step; its packet
+    /// modes walk a packet's rays together, one box against every ray per step; the
+    /// tile mode traces its rays one by one). The ray sets are made with the kd-tree
+    /// either way.
     #[arg(long, default_value = "kdtree", value_parser = ["kdtree", "bvh8"])]
     pub accel: String,
     #[command(flatten)]

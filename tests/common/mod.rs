@@ -13,12 +13,13 @@ pub mod cli;
 pub mod closed;
 
 use glam::Vec3;
+use raypack::accel::RayPacket;
 use raypack::accel::kdtree::KdTree;
 use raypack::ray::{Hit, Ray};
 use raypack::scene::catalog;
 use raypack::scene::generate::{self, Rng};
 use raypack::scene::{Aabb, Camera, Geometry, Plane, Sphere};
-use raypack::simd::Isa;
+use raypack::simd::{Float, Isa, LaneMask, Mask, Simd, Vf};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -28,6 +29,31 @@ use std::sync::{Mutex, Once};
 /// primitive, then `t`, `u`, `v` as `to_bits`.
 pub fn hit_bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+}
+
+/// A packet whose lane `i` is `rays[i]`, or inactive and full of NaN (also past the
+/// end of `rays`).
+pub fn packet<W: Simd>(rays: &[Option<Ray>]) -> RayPacket<W> {
+    assert!(rays.len() <= W::LANES);
+    let get = |f: &dyn Fn(&Ray) -> f32| {
+        Vf::<W>::from_fn(|i| rays.get(i).copied().flatten().as_ref().map_or(f32::NAN, f))
+    };
+    let org = [0, 1, 2].map(|a| get(&|r| r.org[a]));
+    let dir = [0, 1, 2].map(|a| get(&|r| r.dir[a]));
+    let mut active = 0;
+    for (i, r) in rays.iter().enumerate() {
+        if r.is_some() {
+            active |= 1 << i;
+        }
+    }
+    RayPacket {
+        org,
+        dir,
+        inv_dir: dir.map(|d| Vf::<W>::ONE / d),
+        t_min: get(&|r| r.t_min),
+        t_max: get(&|r| r.t_max),
+        active: Mask::<W>::from_bits(active),
+    }
 }
 
 /// Set to 1 (CI does), missing benchmark scenes fail the tests that need them instead of

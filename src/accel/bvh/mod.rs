@@ -1,7 +1,8 @@
-//! An 8-wide BVH for incoherent rays: each step tests one ray against eight child
-//! boxes in one SIMD register (Embree's BVH8, Wald et al. 2008; Áfra et al. 2016),
-//! and a box ends at its primitives, so a ray that misses an isolated model or leaves
-//! it stops after a few steps where a kd-tree walks every empty cell on its way.
+//! An 8-wide BVH: each step of a single ray tests it against eight child boxes in one
+//! SIMD register (Embree's BVH8, Wald et al. 2008; Áfra et al. 2016), each step of a
+//! coherent packet one child box against all its rays ([`traverse_packet`]); and a box
+//! ends at its primitives, so a ray that misses an isolated model or leaves it stops
+//! after a few steps where a kd-tree walks every empty cell on its way.
 //!
 //! Layout: `nodes` holds [`Node8`]s, root first; a child word is an inner node's index,
 //! a leaf (`LEAF_BIT`, count - 1 in bits 27-29, first reference below) or `EMPTY`.
@@ -13,10 +14,12 @@
 
 mod build;
 pub mod traverse;
+pub mod traverse_packet;
 
-use super::{Accel, Prims};
+use super::{Accel, HitPacket, Prims, RayPacket};
 use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
+use crate::simd::{LaneBits, W4, W8, W16};
 
 /// Most primitives in a leaf: one lane test of eight.
 pub const MAX_LEAF: usize = 8;
@@ -120,6 +123,30 @@ impl Accel for Bvh {
         let mut o = [false];
         self.occluded_stream(std::slice::from_ref(ray), &mut o);
         o[0]
+    }
+
+    fn intersect_packet4(&self, rays: &RayPacket<W4>) -> HitPacket<W4> {
+        self.intersect_packet(rays)
+    }
+
+    fn intersect_packet8(&self, rays: &RayPacket<W8>) -> HitPacket<W8> {
+        self.intersect_packet(rays)
+    }
+
+    fn intersect_packet16(&self, rays: &RayPacket<W16>) -> HitPacket<W16> {
+        self.intersect_packet(rays)
+    }
+
+    fn occluded_packet4(&self, rays: &RayPacket<W4>) -> LaneBits {
+        self.occluded_packet(rays)
+    }
+
+    fn occluded_packet8(&self, rays: &RayPacket<W8>) -> LaneBits {
+        self.occluded_packet(rays)
+    }
+
+    fn occluded_packet16(&self, rays: &RayPacket<W16>) -> LaneBits {
+        self.occluded_packet(rays)
     }
 
     fn intersect_stream(&self, rays: &[Ray], hits: &mut [Hit]) {

@@ -21,24 +21,25 @@ use crate::simd::{Float, LaneMask, Simd, Vf, array_fn, inl};
 /// The boxes' margin relative to the largest coordinate: twice the kd-tree's
 /// [`PLANE_SLACK`], half for the triangle test's rounding and half for the box test's
 /// own (a fused or an unfused distance, the inverse's rounding).
-const BOX_SLACK: f32 = 2.0 * PLANE_SLACK;
+pub(super) const BOX_SLACK: f32 = 2.0 * PLANE_SLACK;
 
 /// Stack entries: the binary tree's depth is at most 48 SAH levels plus 27 median
 /// levels (2^27 primitives), and each 8-wide node pushes at most seven children.
-const STACK: usize = 7 * 76 + 8;
+pub(super) const STACK: usize = 7 * 76 + 8;
 
-/// A ray's box-test set-up ([`Bvh::walk`]): per axis in reduction order, the origin
-/// moved by the margin toward the near and the far plane, the same as offsets
-/// `-(org * rcp)`, the inverse direction, and the rows of the near and far planes.
+/// A box-test set-up, per axis (in reduction order for [`Bvh::walk`]'s one ray in all
+/// lanes; x, y, z for a packet group's rays, one per lane): the origin moved by the
+/// margin toward the near and the far plane, the same as offsets `-(org * rcp)`, the
+/// inverse direction, and the rows of the near and far planes.
 #[derive(Clone, Copy)]
-struct Setup<W: Simd> {
-    org_near: [Vf<W>; 3],
-    org_far: [Vf<W>; 3],
-    off_near: [Vf<W>; 3],
-    off_far: [Vf<W>; 3],
-    rcp: [Vf<W>; 3],
-    near: [usize; 3],
-    far: [usize; 3],
+pub(super) struct Setup<W: Simd> {
+    pub(super) org_near: [Vf<W>; 3],
+    pub(super) org_far: [Vf<W>; 3],
+    pub(super) off_near: [Vf<W>; 3],
+    pub(super) off_far: [Vf<W>; 3],
+    pub(super) rcp: [Vf<W>; 3],
+    pub(super) near: [usize; 3],
+    pub(super) far: [usize; 3],
 }
 
 impl Bvh {
@@ -79,7 +80,7 @@ impl Bvh {
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
             let mut best = Hit::MISS;
             if ray.is_usable() && !self.nodes.is_empty() {
-                self.walk::<W, false>(ray, &mut best, &mut stack);
+                self.walk::<W, false>(ray, &mut best, &mut stack, 0);
             }
             self.prims.intersect_planes(ray, &mut best);
             *hit = best;
@@ -94,19 +95,22 @@ impl Bvh {
             let mut unused = Hit::MISS;
             *o = (ray.is_usable()
                 && !self.nodes.is_empty()
-                && self.walk::<W, true>(ray, &mut unused, &mut stack))
+                && self.walk::<W, true>(ray, &mut unused, &mut stack, 0))
                 || self.prims.planes_occlude(ray);
         }
     }
 
-    /// Walks a usable ray from the root: folds the closest hit into `best`, or with
-    /// `ANY_HIT` returns whether anything is hit in `(t_min, t_max)`.
+    /// Walks a usable ray from node `start` (0, the root, or a node the packet walk
+    /// hands on): folds the closest hit into `best` (only hits closer than `best` are
+    /// looked for), or with `ANY_HIT` returns whether anything is hit in `(t_min,
+    /// t_max)`.
     #[inline(always)]
-    fn walk<W: Simd, const ANY_HIT: bool>(
+    pub(super) fn walk<W: Simd, const ANY_HIT: bool>(
         &self,
         ray: &Ray,
         best: &mut Hit,
         stack: &mut [(u32, f32); STACK],
+        start: u32,
     ) -> bool {
         debug_assert_eq!(W::LANES, 8);
         let splat = Vf::<W>::splat;
@@ -179,9 +183,9 @@ impl Bvh {
             ),
         };
         if rcp_s[0].is_finite() && rcp_s[1].is_finite() {
-            self.descend::<W, ANY_HIT, true>(ray, best, stack, &setup)
+            self.descend::<W, ANY_HIT, true>(ray, best, stack, &setup, start)
         } else {
-            self.descend::<W, ANY_HIT, false>(ray, best, stack, &setup)
+            self.descend::<W, ANY_HIT, false>(ray, best, stack, &setup, start)
         }
     }
 
@@ -196,6 +200,7 @@ impl Bvh {
         best: &mut Hit,
         stack: &mut [(u32, f32); STACK],
         setup: &Setup<W>,
+        start: u32,
     ) -> bool {
         let splat = Vf::<W>::splat;
         let Setup {
@@ -209,9 +214,9 @@ impl Bvh {
         } = *setup;
         let t_min = splat(ray.t_min);
         let triangles_only = self.prims.triangles_only();
-        let mut limit = ray.t_max;
+        let mut limit = best.t.min(ray.t_max);
         let mut sp = 0usize;
-        let mut cur = 0u32;
+        let mut cur = start;
         loop {
             if cur & LEAF_BIT == 0 {
                 let node = &self.nodes[cur as usize];

@@ -83,6 +83,15 @@ pub fn bump(f: impl FnOnce(&mut TraversalCounts)) {
     let _ = f;
 }
 
+/// Counts `n` primitive tests: the `count` of `Prims::leaf_groups`.
+#[inline(always)]
+pub fn count_tests(n: u64) {
+    bump(
+        #[inline(always)]
+        |c| c.prim_tests += n,
+    );
+}
+
 /// This thread's counters so far (zero without the `stats` feature).
 pub fn counts() -> TraversalCounts {
     #[cfg(feature = "stats")]

@@ -48,11 +48,13 @@ use crate::geom::Aabb;
 use crate::ray::{Hit, Ray};
 use crate::simd::{self, Float, LaneBits, W4, W8, W16, array_fn, by_width, scalar_entry};
 use glam::Vec3;
-use std::mem::MaybeUninit;
 
 /// Stack entries: one per level at most (a push happens at most once per level on the
 /// way down, and [`MAX_DEPTH`] bounds the levels).
-const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
+pub(super) const STACK_SIZE: usize = MAX_DEPTH as usize + 4;
+
+/// The kd-tree walks' stack.
+pub(super) type Stack<T> = crate::accel::stack::Stack<T, STACK_SIZE>;
 
 /// Relative widening of split planes and of the scene box (8 ulps of f32).
 pub const PLANE_SLACK: f32 = 1.0 / (1u32 << 20) as f32;
@@ -263,62 +265,6 @@ impl KdTree {
             self.prims.intersect_leaf(slots, ray, best);
         }
         false
-    }
-}
-
-/// A traversal stack of [`STACK_SIZE`] `Copy` entries whose free slots stay
-/// uninitialized: zeroing the whole array on every call (64 packet entries are 4 KiB)
-/// cost more than the pushes of a typical coherent packet.
-pub(super) struct Stack<T: Copy> {
-    items: [MaybeUninit<T>; STACK_SIZE],
-    len: usize,
-}
-
-impl<T: Copy> Stack<T> {
-    #[inline(always)]
-    pub(super) fn new() -> Stack<T> {
-        Stack {
-            items: [const { MaybeUninit::uninit() }; STACK_SIZE],
-            len: 0,
-        }
-    }
-
-    /// Panics when full (the tree's depth bounds the pushes, see [`STACK_SIZE`]).
-    #[inline(always)]
-    pub(super) fn push(&mut self, item: T) {
-        self.items[self.len].write(item);
-        self.len += 1;
-    }
-
-    /// Drops every entry.
-    #[inline(always)]
-    pub(super) fn clear(&mut self) {
-        self.len = 0;
-    }
-
-    /// The entries, bottom first.
-    #[cfg(test)]
-    pub(super) fn as_slice(&self) -> &[T] {
-        // SAFETY: `push` is the only writer and raises `len` only after writing slot
-        // `len`, so the first `len` slots hold initialized items; `MaybeUninit<T>` has
-        // `T`'s layout.
-        unsafe { std::slice::from_raw_parts(self.items.as_ptr().cast::<T>(), self.len) }
-    }
-
-    /// Becomes a copy of `other` (its entries only, not the free slots).
-    #[inline(always)]
-    pub(super) fn copy_from(&mut self, other: &Stack<T>) {
-        self.items[..other.len].copy_from_slice(&other.items[..other.len]);
-        self.len = other.len;
-    }
-
-    #[inline(always)]
-    pub(super) fn pop(&mut self) -> Option<T> {
-        self.len = self.len.checked_sub(1)?;
-        // SAFETY: `push` is the only writer and raises `len` only after writing slot
-        // `len`; `pop` only lowers it. So every slot below the old `len`, this one
-        // included, holds an initialized item (`T: Copy`, so reading it twice is fine).
-        Some(unsafe { self.items[self.len].assume_init() })
     }
 }
 

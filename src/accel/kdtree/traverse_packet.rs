@@ -38,13 +38,10 @@
 //!   and their output lanes are left as they were.
 
 use super::KdTree;
-use super::stats::bump;
+use super::stats::{bump, count_tests};
 use super::traverse::{Bands, Stack, box_coord_max, start};
-use crate::accel::packet::{HitPacket, RayPacket};
-use crate::ray::Hit;
-use crate::simd::{
-    Float, LaneBits, LaneMask, MAX_LANES, Mask, Simd, Uint, Vf, array_fn, dispatch, inl, prefetch,
-};
+use crate::accel::packet::{HitPacket, RayPacket, trace_lanes_alone};
+use crate::simd::{Float, LaneBits, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl};
 
 /// One pending far child of a group walk: its node and, per group, the lanes that need
 /// it and their interval.
@@ -54,19 +51,6 @@ struct Entry<W: Simd, const G: usize> {
     lanes: [Mask<W>; G],
     t_near: [Vf<W>; G],
     t_far: [Vf<W>; G],
-}
-
-/// The smallest float above each lane (`f32::next_up`), used for the scalar path's
-/// leaf limit `next_up(best.t)`.
-#[inline(always)]
-fn next_up<F: Float>(v: F) -> F {
-    let b = v.to_bits();
-    let one = F::U::splat(1);
-    let up = F::from_bits(b + one);
-    let down = F::from_bits(b - one);
-    let pos = v.cmp_gt(F::ZERO) & v.cmp_lt(F::splat(f32::INFINITY));
-    let r = F::select(pos, up, F::select(v.cmp_lt(F::ZERO), down, v));
-    F::select(v.cmp_eq(F::ZERO), F::from_bits(one), r)
 }
 
 impl KdTree {
@@ -231,35 +215,14 @@ impl KdTree {
             }
         }
         let ([mut best], [mut occluded]) = (best, occluded);
-        if scalar_bits != 0 {
-            let mut alone = [None; MAX_LANES];
-            let mut hit_bits = 0;
-            while scalar_bits != 0 {
-                let i = scalar_bits.trailing_zeros() as usize;
-                scalar_bits &= scalar_bits - 1;
-                if let Some(ray) = rays.lane(i) {
-                    let mut hit = Hit::MISS;
-                    if self.traverse::<ANY_HIT>(&ray, &mut hit) {
-                        hit_bits |= 1 << i;
-                    }
-                    alone[i] = Some(hit);
-                }
-            }
-            if ANY_HIT {
-                occluded |= Mask::<W>::from_bits(hit_bits);
-            } else {
-                let grouped = best;
-                best = HitPacket::from_lanes(
-                    #[inline(always)]
-                    |i| {
-                        alone[i].unwrap_or_else(
-                            #[inline(always)]
-                            || grouped.lane(i),
-                        )
-                    },
-                );
-            }
-        }
+        trace_lanes_alone::<W, ANY_HIT>(
+            rays,
+            scalar_bits,
+            &mut best,
+            &mut occluded,
+            #[inline(always)]
+            |ray, hit| self.traverse::<ANY_HIT>(ray, hit),
+        );
         (best, occluded)
     }
 
@@ -345,7 +308,14 @@ impl KdTree {
                     );
                     // Walks never enter empty leaves but a tree that is one.
                     if !prims.is_empty() {
-                        self.leaf_groups::<W, G, ANY_HIT>(prims, &rays, &lanes, best, occluded);
+                        self.prims.leaf_groups::<W, G, ANY_HIT>(
+                            prims,
+                            &rays,
+                            &lanes,
+                            best,
+                            occluded,
+                            count_tests,
+                        );
                         if ANY_HIT
                             && union::<W, G>(&array_fn(
                                 #[inline(always)]
@@ -495,86 +465,6 @@ impl KdTree {
                 if any.any() {
                     (node, t_near, t_far) = (e.node, e.t_near, e.t_far);
                     break;
-                }
-            }
-        }
-    }
-
-    /// The primitives `prims` of a leaf against the lanes `lanes[g]` of each group
-    /// `rays(g)`: one group for a packet, several for a tile (traverse_tile.rs). It goes
-    /// primitive by primitive, so each record is loaded once for all groups and the
-    /// groups' tests, independent of one another, overlap; each group sees the
-    /// primitives in the leaf's order, so its answers do not depend on the others.
-    /// Closest hit: folds group `g`'s hits into `best[g]` (in [`Hit::is_closer`]
-    /// order). With `ANY_HIT`: adds to `occluded[g]` the lanes that hit anything in
-    /// `(t_min, t_max)`, each lane leaving at its first hit.
-    #[inline(always)]
-    pub(super) fn leaf_groups<'r, W: Simd, const G: usize, const ANY_HIT: bool>(
-        &self,
-        prims: &[u32],
-        rays: impl Fn(usize) -> &'r RayPacket<W>,
-        lanes: &[Mask<W>; G],
-        best: &mut [HitPacket<W>],
-        occluded: &mut [Mask<W>],
-    ) {
-        let (best, occluded) = (&mut best[..G], &mut occluded[..G]);
-        if ANY_HIT {
-            let mut live = *lanes;
-            for &p in prims {
-                let mut any = Mask::<W>::NONE;
-                for g in 0..G {
-                    if live[g].any() {
-                        bump(
-                            #[inline(always)]
-                            |c| c.prim_tests += 1,
-                        );
-                        let hits =
-                            self.prims
-                                .intersect_prim_packet(p, rays(g), live[g], rays(g).t_max);
-                        occluded[g] |= hits.mask;
-                        live[g] &= !hits.mask;
-                        any |= live[g];
-                    }
-                }
-                if any.none() {
-                    break;
-                }
-            }
-        } else {
-            // Lanes near an edge need the triangle's corners (the exact rule,
-            // triaccel.rs), which sit apart from its record: ask for them now, while
-            // the leaf's tests run.
-            for &p in prims {
-                if let Some(c) = self.prims.corners.get(p as usize) {
-                    prefetch(c);
-                }
-            }
-            let mut limit: [Vf<W>; G] = array_fn(
-                #[inline(always)]
-                |g| next_up(best[g].t).min(rays(g).t_max),
-            );
-            let groups = lanes
-                .iter()
-                .filter(
-                    #[inline(always)]
-                    |l| l.any(),
-                )
-                .count() as u64;
-            bump(
-                #[inline(always)]
-                |c| c.prim_tests += groups * prims.len() as u64,
-            );
-            for &p in prims {
-                let id = self.prims.id(p);
-                for g in 0..G {
-                    if lanes[g].any() {
-                        let hits = self
-                            .prims
-                            .intersect_prim_packet(p, rays(g), lanes[g], limit[g]);
-                        if best[g].merge(&hits, id).any() {
-                            limit[g] = next_up(best[g].t).min(rays(g).t_max);
-                        }
-                    }
                 }
             }
         }

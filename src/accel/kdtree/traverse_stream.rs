@@ -12,7 +12,7 @@
 //! a scene of at most [`FLAT_MAX_PRIMS`] primitives test every one of them instead:
 //! the stream goes in packets of the native width, and each primitive's record,
 //! loaded once, is tested against all the packet's rays (the packet walks' leaf
-//! kernel, `KdTree::leaf_groups`), with no traversal and no lane left idle.
+//! kernel, `Prims::leaf_groups`), with no traversal and no lane left idle.
 //!
 //! A tree small enough to stay in the cache has no load latency to hide: below
 //! [`STREAM_MIN_NODES`] nodes the stream queries walk ray by ray. A tree far larger
@@ -21,6 +21,7 @@
 
 use super::KdTree;
 use super::build::BuildParams;
+use super::stats::count_tests;
 use crate::accel::packet::{HitPacket, RayPacket};
 use crate::accel::{intersect_each, occluded_each};
 use crate::ray::{Hit, Ray};
@@ -156,12 +157,13 @@ impl KdTree {
             let lanes = [packet.active & packet.usable()];
             let mut best = [HitPacket::<W>::miss()];
             let mut unused = [Mask::<W>::NONE];
-            self.leaf_groups::<W, 1, false>(
+            self.prims.leaf_groups::<W, 1, false>(
                 &self.flat,
                 |_| &packet,
                 &lanes,
                 &mut best,
                 &mut unused,
+                count_tests,
             );
             self.prims
                 .intersect_planes_packet(&packet, packet.active, &mut best[0]);
@@ -178,7 +180,14 @@ impl KdTree {
             let lanes = [packet.active & packet.usable()];
             let mut unused = [HitPacket::<W>::miss()];
             let mut hit = [Mask::<W>::NONE];
-            self.leaf_groups::<W, 1, true>(&self.flat, |_| &packet, &lanes, &mut unused, &mut hit);
+            self.prims.leaf_groups::<W, 1, true>(
+                &self.flat,
+                |_| &packet,
+                &lanes,
+                &mut unused,
+                &mut hit,
+                count_tests,
+            );
             let hit = hit[0]
                 | self
                     .prims
