@@ -18,8 +18,9 @@
 //! - Each stack entry keeps every lane's entry distance (+inf for a lane that missed
 //!   the box): a lane is tested in a leaf only if it reached the leaf's box before its
 //!   best hit, and an entry whose lanes all have better hits is dropped when popped.
-//!   Of the children a step hits, the first that is nearer than the one kept for some
-//!   lane is kept and the other pushed (Embree's order, no sort across lanes).
+//!   The children a step hits go nearest first: closest-hit packets of up to 8 lanes
+//!   sort them by the entry distance of their first hit lane; other packets keep the
+//!   first and swap for a later one that is nearer for some lane (Embree's order).
 //! - Leaves run `Prims::leaf_groups`, the kd-tree's packet leaf test,
 //!   bit-identical to the scalar tests: every lane's hit is brute force's.
 //! - Inactive lanes get an empty interval (`t_min` +inf, limit -inf): whatever they
@@ -282,6 +283,13 @@ impl Bvh {
                 let node = &self.nodes[cur as usize];
                 let mut next = EMPTY;
                 let mut next_dist = inf;
+                // Closest-hit packets of up to 8 lanes go to the hit children nearest
+                // first by their first hit lane's entry; at 16 lanes Embree's order
+                // paid more (perf/log/bvh.md).
+                let sorted = !ANY_HIT && W::LANES <= 8;
+                let mut keys = [0.0f32; 8];
+                let mut order = [(0u32, inf); 8];
+                let mut nh = 0usize;
                 for c in 0..8 {
                     let w = node.child[c];
                     if w == EMPTY {
@@ -315,6 +323,20 @@ impl Bvh {
                         continue;
                     }
                     let dist = select(hit, t_near, inf);
+                    if sorted {
+                        // By the first hit lane's entry, farthest first.
+                        let key = dist.lane(hit.bits().trailing_zeros() as usize);
+                        let mut j = nh;
+                        while j > 0 && keys[j - 1] < key {
+                            keys[j] = keys[j - 1];
+                            order[j] = order[j - 1];
+                            j -= 1;
+                        }
+                        keys[j] = key;
+                        order[j] = (w, dist);
+                        nh += 1;
+                        continue;
+                    }
                     if next == EMPTY {
                         (next, next_dist) = (w, dist);
                     } else if dist.cmp_lt(next_dist).any() {
@@ -325,6 +347,13 @@ impl Bvh {
                         words.push(w);
                         dists.push(dist);
                     }
+                }
+                if sorted && nh > 0 {
+                    for &(w, d) in &order[..nh - 1] {
+                        words.push(w);
+                        dists.push(d);
+                    }
+                    (next, next_dist) = order[nh - 1];
                 }
                 if next != EMPTY {
                     (cur, cur_dist) = (next, next_dist);
