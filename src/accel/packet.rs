@@ -428,6 +428,18 @@ fn write_as<B: Simd, W: Simd>(hits: &HitPacket<W>, out: &mut [Hit]) {
     Vf::<B>::transpose4_into([hits.t, hits.u, hits.v, prim], Hit::as_records_mut(out));
 }
 
+/// Groups of at most this many coherent lanes of a `W` packet are traced as single
+/// rays ([`trace_lanes_alone`]), by both trees' packet walks: a packet step costs about
+/// the same at every occupancy, a single-ray step a fraction of it (1 of 4 lanes, 2 of
+/// 8, 3 of 16; measured on the kd-tree).
+pub(crate) const fn alone_max<W: Simd>() -> u32 {
+    match W::LANES {
+        4 => 1,
+        8 => 2,
+        _ => 3,
+    }
+}
+
 /// Traces the lanes `bits` of `rays` one at a time through `trace(ray, hit)` (a single
 /// walk that folds the closest hit into `hit`, or with `ANY_HIT` returns whether the ray
 /// is occluded), and puts their answers into `best`'s lanes or `occluded`: the packet

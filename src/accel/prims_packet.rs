@@ -270,7 +270,7 @@ impl Prims {
 /// The smallest float above each lane (`f32::next_up`), used for the scalar path's
 /// leaf limit `next_up(best.t)`.
 #[inline(always)]
-pub(crate) fn next_up<F: Float>(v: F) -> F {
+fn next_up<F: Float>(v: F) -> F {
     let b = v.to_bits();
     let one = F::U::splat(1);
     let up = F::from_bits(b + one);

@@ -11,7 +11,7 @@
 //!   NaN where distances could overflow), fused where no lane has an infinite one. The
 //!   reductions start from `t_min` and the limit, so a NaN slab limits nothing in any
 //!   lane, whichever axis it is on.
-//! - A group of few lanes (`single_max`) walks one ray at a time through the single
+//! - A group of few lanes (`alone_max`) walks one ray at a time through the single
 //!   walk: a packet step costs about the same at any occupancy. Any-hit packets do the
 //!   same at any node that few lanes still need: each of them walks that subtree alone
 //!   (Embree's switch to single rays), and the packet pops.
@@ -28,21 +28,12 @@
 
 use super::traverse::{BOX_SLACK, STACK, Setup};
 use super::{Bvh, EMPTY, LEAF_BIT};
-use crate::accel::packet::{HitPacket, RayPacket, trace_lanes_alone};
+use crate::accel::packet::{HitPacket, RayPacket, alone_max, trace_lanes_alone};
 use crate::accel::stack::Stack;
 use crate::ray::Hit;
 use crate::simd::{
     AMap, Float, LaneBits, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl, max_abs,
 };
-
-/// Groups of at most this many lanes of a `W` packet walk one ray at a time.
-const fn single_max<W: Simd>() -> u32 {
-    match W::LANES {
-        4 => 1,
-        8 => 2,
-        _ => 3,
-    }
-}
 
 impl Bvh {
     /// Closest hits of the active lanes of `rays` (planes included); inactive lanes get
@@ -117,7 +108,7 @@ impl Bvh {
             );
             let group = left & same(0) & same(1) & same(2);
             left &= !group;
-            if group.count_ones() <= single_max::<W>() {
+            if group.count_ones() <= alone_max::<W>() {
                 single |= group;
                 continue;
             }
@@ -254,8 +245,8 @@ impl Bvh {
             // (Embree's switch to single rays), and the packet pops. Closest-hit
             // packets keep walking together: the switch cost their primary sets 8-15%.
             let live = cur_dist.cmp_le(limit).bits();
-            let alone_max = if ANY_HIT { single_max::<W>() } else { 0 };
-            if live.count_ones() <= alone_max {
+            let handed_over = if ANY_HIT { alone_max::<W>() } else { 0 };
+            if live.count_ones() <= handed_over {
                 if ANY_HIT {
                     // Lazily: zeroing it costs a packet that never hands over.
                     #[allow(clippy::unnecessary_lazy_evaluations)]

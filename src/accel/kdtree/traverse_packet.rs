@@ -26,7 +26,7 @@
 //! - Near and far must mean the same child for every lane: the lanes of a packet must
 //!   agree on the sign of each direction component. Packets that disagree are split
 //!   into groups that agree and traced one group after the other (counted in
-//!   [`super::stats`]). A group of at most `scalar_group_max` lanes (1 of 4, 2 of 8, 3
+//!   [`super::stats`]). A group of at most `alone_max` lanes (1 of 4, 2 of 8, 3
 //!   of 16) takes the scalar traversal lane by lane, whose answer is the same.
 //! - A packet is the group walk (`KdTree::walk_groups`) of one group; a tile
 //!   (traverse_tile.rs) is the same walk of several.
@@ -40,7 +40,7 @@
 use super::KdTree;
 use super::stats::{bump, count_tests};
 use super::traverse::{Bands, Stack, box_coord_max, start};
-use crate::accel::packet::{HitPacket, RayPacket, trace_lanes_alone};
+use crate::accel::packet::{HitPacket, RayPacket, alone_max, trace_lanes_alone};
 use crate::simd::{Float, LaneBits, LaneMask, Mask, Simd, Vf, array_fn, dispatch, inl};
 
 /// One pending far child of a group walk: its node and, per group, the lanes that need
@@ -116,24 +116,13 @@ pub(super) fn coherent_groups<W: Simd>(
     (groups, count)
 }
 
-/// Groups of at most this many coherent lanes of a `W` packet are traced as single
-/// rays: a packet step costs about the same at every occupancy, a scalar step a
-/// fraction of it (1 of 4 lanes, 2 of 8, 3 of 16).
-const fn scalar_group_max<W: Simd>() -> u32 {
-    match W::LANES {
-        4 => 1,
-        8 => 2,
-        _ => 3,
-    }
-}
-
 /// Whether a group is traced lane by lane with the scalar traversal: a group of at most
-/// [`scalar_group_max`] lanes, which gives the same answer bit for bit (the packet
+/// [`alone_max`] lanes, which gives the same answer bit for bit (the packet
 /// path's invariant) for less work than a packet step with most lanes masked off.
 /// Incoherent packets (cosine bounces) split into several groups, most of them small.
 #[inline(always)]
 fn goes_scalar<W: Simd>(group: LaneBits) -> bool {
-    group.count_ones() <= scalar_group_max::<W>()
+    group.count_ones() <= alone_max::<W>()
 }
 
 impl KdTree {
