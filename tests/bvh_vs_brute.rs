@@ -374,3 +374,31 @@ fn parallel_build_equals_serial() {
     assert!(serial.nodes().len() > 100);
     assert_eq!(bits(&serial), bits(&parallel));
 }
+
+/// The statistics count what the tree holds: every triangle of a soup in one leaf,
+/// leaves within their size limit, the root's box priced at one step, and each child
+/// box inside the root's (so no leaf costs more than the root).
+#[test]
+fn stats_count_the_tree() {
+    let mut g = generate::random_soup(5_000, 0.05, 3);
+    // Without the soup's collinear triangles, which the build leaves out.
+    let mut i = 0;
+    g.triangles.retain(|_| {
+        i += 1;
+        (i - 1) % 97 != 13
+    });
+    let bvh = Bvh::build(&g);
+    let s = bvh.stats();
+    assert_eq!(s.nodes, bvh.nodes().len());
+    let placed = (s.leaves as f64 * s.mean_leaf).round() as usize;
+    assert_eq!(placed, g.triangles.len());
+    assert!(s.mean_leaf >= 1.0 && s.mean_leaf <= raypack::accel::bvh::MAX_LEAF as f64);
+    assert!(s.fill > 0.0 && s.fill <= 1.0);
+    assert!(s.depth >= 2, "5000 triangles in one level: {s:?}");
+    assert!(s.sah_nodes >= 1.0 && s.sah_nodes < s.nodes as f64, "{s:?}");
+    assert!(
+        s.sah_leaves > 0.0 && s.sah_leaves < s.leaves as f64,
+        "{s:?}"
+    );
+    assert_eq!(Bvh::build(&Geometry::default()).stats().leaves, 0);
+}

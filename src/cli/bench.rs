@@ -398,9 +398,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         build_seconds
     );
     if let Some(bvh) = &bvh {
+        let s = bvh.stats();
         outln!(
-            "timed: {BVH_NAME} ({} nodes, {:.1} bytes per triangle) built in {:.3} s",
-            bvh.nodes().len(),
+            "timed: {BVH_NAME} ({} nodes {:.0}% filled, {} leaves of {:.2} primitives, depth {}, \
+             SAH steps {:.2} + leaves {:.2}; {:.1} bytes per triangle) built in {:.3} s",
+            s.nodes,
+            100.0 * s.fill,
+            s.leaves,
+            s.mean_leaf,
+            s.depth,
+            s.sah_nodes,
+            s.sah_leaves,
             bvh.bytes() as f64 / scene.geometry.triangles.len().max(1) as f64,
             bvh.build_seconds()
         );

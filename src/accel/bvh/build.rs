@@ -14,9 +14,13 @@ const PARALLEL_MIN: usize = 4096;
 /// Past this depth a node splits at its object median: the depth, and so the walks'
 /// stack, stays bounded on any input.
 const SAH_DEPTH: u32 = 48;
-/// SAH cost of a node step against one primitive test; with eight children a step
-/// costs little beside the leaf's lane test.
-const TRAVERSAL_COST: f32 = 2.0;
+/// Primitives the SAH prices as one test: the leaf kernel tests up to four triangles
+/// in one 4-lane pass (eight in an 8-lane one), so a leaf's cost grows by blocks, not
+/// by triangles (Embree's blocks of four). Leaves then fill up where splitting gains
+/// nothing: fewer nodes and leaves than at a price per triangle (perf/log/bvh.md).
+const BLOCK: u32 = 4;
+/// SAH cost of a node step against one block's test.
+const TRAVERSAL_COST: f32 = 1.0;
 
 /// A primitive's bounds and id.
 #[derive(Clone, Copy)]
@@ -91,13 +95,19 @@ fn best_split(refs: &[Ref], cb: &Aabb) -> Option<(f32, usize, usize)> {
             if n == 0 || right_count[b] == 0 {
                 continue;
             }
-            let cost = area(&acc) * n as f32 + right_area[b] * right_count[b] as f32;
+            let cost = area(&acc) * blocks(n) + right_area[b] * blocks(right_count[b]);
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, b));
             }
         }
     }
     best
+}
+
+/// The SAH's price of a leaf of `n` primitives: its lane tests of up to [`BLOCK`].
+#[inline]
+fn blocks(n: u32) -> f32 {
+    n.div_ceil(BLOCK) as f32
 }
 
 #[inline]
@@ -122,7 +132,7 @@ fn partition(refs: &mut [Ref], bounds: &Aabb, cb: &Aabb, depth: u32) -> Option<u
         None
     };
     if let Some((cost, axis, bin)) = split {
-        let leaf_cost = n as f32;
+        let leaf_cost = blocks(n as u32);
         let split_cost = TRAVERSAL_COST + cost / area(bounds).max(f32::MIN_POSITIVE);
         if n <= MAX_LEAF && (leaf_cost <= split_cost || area(bounds) == 0.0) {
             return None;

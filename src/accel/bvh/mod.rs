@@ -65,6 +65,26 @@ impl Node8 {
     }
 }
 
+/// Shape and cost figures of a built BVH (`raypack bench --accel bvh8`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BvhStats {
+    /// 8-wide inner nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Used child slots over all slots of the inner nodes.
+    pub fill: f64,
+    /// Mean primitives per leaf.
+    pub mean_leaf: f64,
+    /// Depth of the deepest leaf (children of the root at depth 1).
+    pub depth: u32,
+    /// Expected inner-node steps of a ray through the root's box: the inner nodes'
+    /// areas over the root's (the surface area heuristic).
+    pub sah_nodes: f64,
+    /// Expected leaf tests of such a ray: the leaves' areas over the root's.
+    pub sah_leaves: f64,
+}
+
 /// An 8-wide BVH over one scene's bounded primitives, the planes tested beside it.
 pub struct Bvh {
     pub(crate) nodes: Vec<Node8>,
@@ -97,6 +117,55 @@ impl Bvh {
         std::mem::size_of_val(self.nodes.as_slice())
             + std::mem::size_of_val(self.slots.as_slice())
             + std::mem::size_of_val(self.prims.tris.as_slice())
+    }
+
+    /// Walks the tree for its [`BvhStats`].
+    pub fn stats(&self) -> BvhStats {
+        let mut s = BvhStats {
+            nodes: self.nodes.len(),
+            ..BvhStats::default()
+        };
+        if self.nodes.is_empty() {
+            return s;
+        }
+        let area = |b: &Aabb| {
+            let e = b.extent();
+            (e.x * e.y + e.y * e.z + e.z * e.x) as f64
+        };
+        let root = area(&self.bounds).max(f64::MIN_POSITIVE);
+        let (mut used, mut prims) = (0usize, 0usize);
+        let mut todo = vec![(0u32, 1u32, self.bounds)];
+        while let Some((w, depth, b)) = todo.pop() {
+            if w & LEAF_BIT != 0 {
+                s.leaves += 1;
+                prims += self.leaf(w).len();
+                s.depth = s.depth.max(depth);
+                s.sah_leaves += area(&b) / root;
+                continue;
+            }
+            s.sah_nodes += area(&b) / root;
+            let node = &self.nodes[w as usize];
+            for (slot, &c) in node.child.iter().enumerate() {
+                if c == EMPTY {
+                    continue;
+                }
+                used += 1;
+                let min = glam::Vec3::new(
+                    node.planes[0][slot],
+                    node.planes[2][slot],
+                    node.planes[4][slot],
+                );
+                let max = glam::Vec3::new(
+                    node.planes[1][slot],
+                    node.planes[3][slot],
+                    node.planes[5][slot],
+                );
+                todo.push((c, depth + 1, Aabb { min, max }));
+            }
+        }
+        s.fill = used as f64 / (8 * s.nodes) as f64;
+        s.mean_leaf = prims as f64 / s.leaves.max(1) as f64;
+        s
     }
 
     /// The slots of leaf word `w`.
