@@ -27,8 +27,8 @@ pub(super) const BOX_SLACK: f32 = 2.0 * PLANE_SLACK;
 /// levels (2^27 primitives), and each 8-wide node pushes at most seven children.
 pub(super) const STACK: usize = 7 * 76 + 8;
 
-/// A box-test set-up, per axis (in reduction order for [`Bvh::walk`]'s one ray in all
-/// lanes; x, y, z for a packet group's rays, one per lane): the origin moved by the
+/// A box-test set-up, per axis x, y, z ([`Bvh::walk`]'s one ray in all lanes, or a
+/// packet group's rays, one per lane): the origin moved by the
 /// margin toward the near and the far plane, the same as offsets `-(org * rcp)`, the
 /// inverse direction, and the rows of the near and far planes.
 #[derive(Clone, Copy)]
@@ -43,17 +43,6 @@ pub(super) struct Setup<W: Simd> {
 }
 
 impl Bvh {
-    /// Every leaf in turn, without a box test: for rays whose distances to the boxes
-    /// could overflow.
-    #[inline(always)]
-    fn every_leaf<const ANY_HIT: bool>(&self, ray: &Ray, best: &mut Hit) -> bool {
-        if ANY_HIT {
-            return self.prims.occludes_leaf(&self.slots, ray);
-        }
-        self.prims.intersect_leaf(&self.slots, ray, best);
-        false
-    }
-
     /// Asks the caches for what child word `w` names (a node's boxes, a leaf's first
     /// records) while the walk goes on elsewhere: a pushed child is popped later.
     #[inline(always)]
@@ -122,45 +111,32 @@ impl Bvh {
         let margin = reach * BOX_SLACK;
         // An inverse whose distances could overflow limits nothing (NaN, dropped by
         // the reductions); a zero component keeps its infinite inverse (everything
-        // or nothing, NaN on the widened face itself).
+        // or nothing, NaN on the widened face itself). Branch-free: a diffuse ray's
+        // set-up is a fifth of its walk.
         let inv = inl(
             #[inline(always)]
             |x: f32| {
                 let r = 1.0 / x;
-                if x == 0.0 || r.abs() * (4.0 * reach) <= f32::MAX {
-                    r
-                } else {
-                    f32::NAN
-                }
+                let keep = (x == 0.0) | (r.abs() * (4.0 * reach) <= f32::MAX);
+                if keep { r } else { f32::NAN }
             },
         );
-        // Axes in the order the reductions take them: the largest direction component
-        // last, so `a.max_gt(acc)` never starts from a NaN.
-        let last = d.abs().max_position();
-        let axes = [(last + 1) % 3, (last + 2) % 3, last];
-        let rcp_last = inv(d[last]);
-        if rcp_last.is_nan() {
-            // Coordinates near f32::MAX: every leaf, as brute force does.
-            return self.every_leaf::<ANY_HIT>(ray, best);
-        }
-        let sign = axes.map(
+        let rcp = [inv(d.x), inv(d.y), inv(d.z)];
+        // Toward the near plane on each axis, and away from it toward the far one.
+        let step = [d.x, d.y, d.z].map(
             #[inline(always)]
-            |a| if d[a].is_sign_negative() { -1.0 } else { 1.0 },
-        );
-        let rcp_s = axes.map(
-            #[inline(always)]
-            |a| inv(d[a]),
+            |c| margin.copysign(c),
         );
         let org_near = array_fn(
             #[inline(always)]
-            |i| o[axes[i]] + margin * sign[i],
+            |a| o[a] + step[a],
         );
         let org_far = array_fn(
             #[inline(always)]
-            |i| o[axes[i]] - margin * sign[i],
+            |a| o[a] - step[a],
         );
         // The near plane of each axis is the minimum where the ray goes up (+0 too).
-        let near = axes.map(
+        let near = array_fn(
             #[inline(always)]
             |a| 2 * a + d[a].is_sign_negative() as usize,
         );
@@ -169,28 +145,31 @@ impl Bvh {
             org_far: org_far.map(splat),
             off_near: array_fn(
                 #[inline(always)]
-                |i| splat(-(org_near[i] * rcp_s[i])),
+                |a| splat(-(org_near[a] * rcp[a])),
             ),
             off_far: array_fn(
                 #[inline(always)]
-                |i| splat(-(org_far[i] * rcp_s[i])),
+                |a| splat(-(org_far[a] * rcp[a])),
             ),
-            rcp: rcp_s.map(splat),
+            rcp: rcp.map(splat),
             near,
             far: near.map(
                 #[inline(always)]
                 |k| k ^ 1,
             ),
         };
-        if rcp_s[0].is_finite() && rcp_s[1].is_finite() {
+        if rcp.iter().all(
+            #[inline(always)]
+            |r| r.abs() != f32::INFINITY,
+        ) {
             self.descend::<W, ANY_HIT, true>(ray, best, stack, &setup, start)
         } else {
             self.descend::<W, ANY_HIT, false>(ray, best, stack, &setup, start)
         }
     }
 
-    /// The walk of [`Bvh::walk`] from the root with `setup`. `FUSED` when every inverse
-    /// is finite: a distance is then `plane * rcp + off` (one fused multiply-add where
+    /// The walk of [`Bvh::walk`] from the root with `setup`. `FUSED` when no inverse
+    /// is infinite: a distance is then `plane * rcp + off` (one fused multiply-add where
     /// the set has it); else `(plane - org) * rcp`, which keeps a zero component's
     /// slab exact.
     #[inline(always)]
@@ -241,9 +220,10 @@ impl Bvh {
                     },
                 );
                 let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
-                // `a.max_gt(acc)` keeps `acc` where `a` is NaN.
-                let t_near = t_min.max_gt(n0.max_gt(n1.max_gt(n2)));
-                let t_far = splat(limit).min_lt(f0.min_lt(f1.min_lt(f2)));
+                // `a.max_gt(acc)` keeps `acc` where `a` is NaN, and the chains start
+                // from the ray's own bounds, never NaN.
+                let t_near = n0.max_gt(n1.max_gt(n2.max_gt(t_min)));
+                let t_far = f0.min_lt(f1.min_lt(f2.min_lt(splat(limit))));
                 let mut bits = t_near.cmp_le(t_far).bits();
                 match bits.count_ones() {
                     0 => {}
