@@ -153,17 +153,36 @@ def _hits(raw, lead: Tuple[int, ...]) -> Hits:
     )
 
 
+def _accel(accel: str) -> str:
+    if accel not in ("kdtree", "bvh8"):
+        raise ValueError(f'accel must be "kdtree" or "bvh8", not {accel!r}')
+    return accel
+
+
 class Scene:
-    """Triangles (or a loaded scene) and the kd-tree built over them.
+    """Triangles (or a loaded scene) and the accelerator built over them.
 
     ``Scene(vertices, triangles)`` takes an ``(n, 3)`` float array of vertices (float32
     or float64; float64 is rounded to float32, the precision raypack traces in) and an
     ``(m, 3)`` integer array of vertex indices; triangle ``j`` is primitive ``j``.
     Coordinates must be finite and indices in ``range(n)``, or :class:`Error` names the
     first that is not. The tree is built on ``threads`` workers (``None``: every core).
+
+    ``accel`` picks the tree the queries walk; both give the same answers, bit for bit.
+    ``"kdtree"`` (the SAH kd-tree) is fastest in interiors, on overlapping triangles and
+    on small scenes; ``"bvh8"`` (an 8-wide BVH) on isolated models, terrain and scenes of
+    many objects in empty space (perf/README.md in the repository). :func:`render`
+    always walks the kd-tree; a ``"bvh8"`` scene builds it at its first render.
     """
 
-    def __init__(self, vertices: ArrayLike, triangles: ArrayLike, *, threads: Optional[int] = None):
+    def __init__(
+        self,
+        vertices: ArrayLike,
+        triangles: ArrayLike,
+        *,
+        threads: Optional[int] = None,
+        accel: str = "kdtree",
+    ):
         v = np.asarray(vertices)
         t = np.asarray(triangles)
         if v.dtype.kind not in "fiu":
@@ -180,21 +199,30 @@ class Scene:
             _to_f32(v, "vertex"),
             np.ascontiguousarray(t, dtype=np.int64),
             _threads(threads),
+            _accel(accel),
         )
 
     @classmethod
-    def load(cls, scene: str, *, threads: Optional[int] = None) -> "Scene":
+    def load(
+        cls, scene: str, *, threads: Optional[int] = None, accel: str = "kdtree"
+    ) -> "Scene":
         """A scene as the ``raypack`` command reads one: an OBJ mesh (``.obj``), a scene
         file (``.toml``, its spheres, boxes and planes included), the name of a
         benchmark scene of ``cameras.toml`` (``"sponza"``, ``"bunny"``, ...; found in
         ``$RAYPACK_SCENES`` or ``../shared/scenes``) or a generated scene
-        (``"spd:balls:3"``). Its camera is the one it comes with."""
+        (``"spd:balls:3"``). Its camera is the one it comes with. ``threads`` and
+        ``accel`` as for ``Scene(...)``."""
         if not isinstance(scene, str):
             scene = str(scene)
         self = cls.__new__(cls)
-        self._scene = _raypack.Scene.load(scene, _threads(threads))
+        self._scene = _raypack.Scene.load(scene, _threads(threads), _accel(accel))
         self._name = scene
         return self
+
+    @property
+    def accel(self) -> str:
+        """The tree the queries walk: ``"kdtree"`` or ``"bvh8"``."""
+        return self._scene.accel
 
     @property
     def triangle_count(self) -> int:

@@ -10,8 +10,9 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
+use raypack::accel::bvh::Bvh;
 use raypack::accel::kdtree::KdTree;
-use raypack::accel::{BATCH_RAYS, Mode};
+use raypack::accel::{Accel, BATCH_RAYS, Mode};
 use raypack::geom::Geometry;
 use raypack::glam::{DVec3, Vec3};
 use raypack::ray::{Hit, Ray};
@@ -42,7 +43,8 @@ fn error(e: impl std::fmt::Display) -> PyErr {
     Error::new_err(e.to_string())
 }
 
-/// A scene (its geometry, materials, lights and camera) and its kd-tree, built once.
+/// A scene (its geometry, materials, lights and camera) and the accelerator its rays
+/// take, built once.
 #[pyclass(module = "raypack._raypack", frozen)]
 struct Scene {
     /// The scene as `raypack render` would render it; its `view` is the camera the
@@ -50,7 +52,12 @@ struct Scene {
     staged: Staged,
     /// Why [`render`] refuses the scene (a generated `spd:` scene), if it does.
     not_renderable: Option<String>,
-    tree: KdTree,
+    /// The kd-tree: built with the scene when it answers the queries, else at the
+    /// first render (the renderers walk the kd-tree).
+    tree: OnceLock<KdTree>,
+    /// The 8-wide BVH when the scene was made with `accel="bvh8"`: it answers the
+    /// queries (the same answers, bit for bit).
+    bvh: Option<Bvh>,
     /// The diagonal of the scene's bounds, the scale `auto` judges ray origins by.
     scale: f32,
     /// Each triangle's unit normal, bit for bit [`Geometry::geometric_normal`]'s, so
@@ -305,6 +312,7 @@ impl Scene {
         vertices: PyReadonlyArray2<'_, f32>,
         triangles: PyReadonlyArray2<'_, i64>,
         threads: usize,
+        accel: &str,
     ) -> PyResult<Scene> {
         let v = rows(&vertices)?;
         let flat = triangles.as_slice()?;
@@ -313,13 +321,13 @@ impl Scene {
         }
         let t = flat.as_chunks::<3>().0;
         let geometry = Geometry::from_arrays(v, t).map_err(error)?;
-        Scene::build(py, studio::mesh(geometry), None, threads)
+        Scene::build(py, studio::mesh(geometry), None, threads, accel)
     }
 
     /// A scene file, an OBJ mesh, a benchmark scene's name or an `spd:` scene, as
     /// `raypack` reads them.
     #[staticmethod]
-    fn load(py: Python<'_>, scene: &str, threads: usize) -> PyResult<Scene> {
+    fn load(py: Python<'_>, scene: &str, threads: usize, accel: &str) -> PyResult<Scene> {
         let loaded = py.detach(|| match studio::load(scene) {
             Err(StudioError::NotRenderable(why)) => {
                 // Geometry only: traceable, not renderable.
@@ -333,7 +341,13 @@ impl Scene {
             staged => Ok((staged?, None)),
         });
         let (staged, not_renderable) = loaded.map_err(error)?;
-        Scene::build(py, staged, not_renderable, threads)
+        Scene::build(py, staged, not_renderable, threads, accel)
+    }
+
+    /// The accelerator the queries take: "kdtree" or "bvh8".
+    #[getter(accel)]
+    fn accel_name(&self) -> &'static str {
+        if self.bvh.is_some() { "bvh8" } else { "kdtree" }
     }
 
     #[getter]
@@ -390,7 +404,7 @@ impl Scene {
         let out = on_pool(py, threads, || {
             HitArrays::of(self, rays.len(), |first, hits, buf| {
                 let mode = self.chunk(&rays, mode, first, hits.len(), buf)?;
-                trace::intersect_into(&self.tree, buf, trace::Order::Any, mode, hits);
+                trace::intersect_into(self.queries(), buf, trace::Order::Any, mode, hits);
                 Ok(())
             })
         })?;
@@ -423,7 +437,13 @@ impl Scene {
                     |buf, (chunk, occluded)| {
                         let first = chunk * BATCH_RAYS;
                         let mode = self.chunk(&rays, mode, first, occluded.len(), buf)?;
-                        trace::occluded_into(&self.tree, buf, trace::Order::Any, mode, occluded);
+                        trace::occluded_into(
+                            self.queries(),
+                            buf,
+                            trace::Order::Any,
+                            mode,
+                            occluded,
+                        );
                         Ok(())
                     },
                 )
@@ -486,7 +506,7 @@ impl Scene {
         let mode = parse_mode(mode)?.unwrap_or_else(Mode::native_packet);
         let view = view_of(eye, target, up, vfov);
         let out = on_pool(py, threads, || {
-            let (rays, hits) = trace::trace_image(&self.tree, &view, width, height, mode)?;
+            let (rays, hits) = trace::trace_image(self.queries(), &view, width, height, mode)?;
             let out = HitArrays::of(self, hits.len(), |first, out, buf| {
                 out.copy_from_slice(&hits[first..first + out.len()]);
                 buf.clear();
@@ -539,10 +559,27 @@ impl Scene {
         staged: Staged,
         not_renderable: Option<String>,
         threads: usize,
+        accel: &str,
     ) -> PyResult<Scene> {
+        let bvh = match accel {
+            "kdtree" => false,
+            "bvh8" => true,
+            _ => {
+                return Err(error(format!(
+                    "accel {accel:?}: expected \"kdtree\" or \"bvh8\""
+                )));
+            }
+        };
         let geometry = &staged.scene.geometry;
-        let (tree, triangle_normals) = on_pool(py, threads, || {
-            (KdTree::build(geometry), geometry.triangle_normals())
+        let (tree, bvh, triangle_normals) = on_pool(py, threads, || {
+            let tree = OnceLock::new();
+            let bvh = if bvh {
+                Some(Bvh::build(geometry))
+            } else {
+                let _ = tree.set(KdTree::build(geometry));
+                None
+            };
+            (tree, bvh, geometry.triangle_normals())
         })?;
         Ok(Scene {
             triangle_normals,
@@ -550,7 +587,21 @@ impl Scene {
             staged,
             not_renderable,
             tree,
+            bvh,
         })
+    }
+
+    /// The kd-tree, built now if the scene was made without it.
+    fn kd(&self) -> &KdTree {
+        self.tree.get_or_init(|| KdTree::build(self.geometry()))
+    }
+
+    /// The accelerator the queries take.
+    fn queries(&self) -> &dyn Accel {
+        match &self.bvh {
+            Some(bvh) => bvh,
+            None => self.kd(),
+        }
     }
 }
 
@@ -628,10 +679,10 @@ fn render<'py>(
             let mut scene_w = staged.scene;
             on_pool(py, threads, || {
                 if staged.source == Source::Mesh {
-                    studio::light_mesh(&mut scene_w, &scene.tree)?;
+                    studio::light_mesh(&mut scene_w, scene.kd())?;
                 }
                 Ok::<_, raypack::rayset::RaySetError>(
-                    tiles::render(&scene_w, &scene.tree, mode, &|| {}).film,
+                    tiles::render(&scene_w, scene.kd(), mode, &|| {}).film,
                 )
             })?
             .map_err(error)?
@@ -646,7 +697,7 @@ fn render<'py>(
             let (environment, _) = studio::gi_environment(&staged, sky.map(Vec3::from_array));
             let gi_scene = &staged.scene;
             on_pool(py, threads, || {
-                let mut gi = GiScene::new(gi_scene, &scene.tree, environment, max_bounces);
+                let mut gi = GiScene::new(gi_scene, scene.kd(), environment, max_bounces);
                 gi.sampler = sampler;
                 if integrator == "path" {
                     let tracer = PathTracer::new(gi);

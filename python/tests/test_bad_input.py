@@ -144,6 +144,16 @@ def test_bad_scene_files(tmp_path):
         raypack.Scene.load("no-such-scene")
 
 
+def test_bad_accel():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    t = np.array([[0, 1, 2]])
+    for accel in ("octree", "", None, 8):
+        with pytest.raises(ValueError, match="accel must be"):
+            raypack.Scene(v, t, accel=accel)
+        with pytest.raises(ValueError, match="accel must be"):
+            raypack.Scene.load("bunny", accel=accel)
+
+
 def test_a_bad_raypack_isa_is_refused_at_import():
     env = {**os.environ, "RAYPACK_ISA": "avx9000"}
     out = subprocess.run([sys.executable, "-c", "import raypack"], env=env, capture_output=True, text=True, cwd=REPO)

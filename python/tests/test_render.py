@@ -72,6 +72,14 @@ def test_every_mode_and_thread_count_renders_the_same_image():
             assert np.array_equal(bits(got), bits(want)), (integrator, mode)
 
 
+def test_a_bvh8_scene_renders_the_kdtree_image():
+    kd, bvh = raypack.Scene.load(KNOT), raypack.Scene.load(KNOT, accel="bvh8")
+    for integrator in ("whitted", "path"):
+        want = raypack.render(kd, 24, 16, 1, integrator)
+        got = raypack.render(bvh, 24, 16, 1, integrator)
+        assert np.array_equal(bits(got), bits(want)), integrator
+
+
 def test_bad_render_options():
     scene = raypack.Scene.load(KNOT)
     with pytest.raises(raypack.Error, match="spp 3: the Whitted tracer takes a square"):

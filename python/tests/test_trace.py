@@ -65,6 +65,41 @@ def test_loaded_scenes_match_the_rust_library(tmp_path, mode):
         assert_same_hits(got, *cli_hits(tmp_path, name, o, d, t0, t1, mode), what=f"{name} {mode}")
 
 
+@pytest.mark.parametrize("mode", ["scalar", "stream", "packet8", "packet16"])
+def test_bvh8_scenes_match_the_rust_library(tmp_path, mode):
+    rng = np.random.default_rng(11)
+    v, t = random_mesh(rng, 400)
+    obj = tmp_path / "soup.obj"
+    write_obj(obj, v, t)
+    scenes = [(str(obj), raypack.Scene(v, t, accel="bvh8"))]
+    scenes += [(n, raypack.Scene.load(n, accel="bvh8")) for n in (KNOT, str(REPO / "scenes" / "part3.toml"))]
+    for name, scene in scenes:
+        assert scene.accel == "bvh8"
+        lo, hi = scene.bounds
+        o, d = rays_at(rng, 3000, lo, hi)
+        t0 = np.zeros(len(o), np.float32)
+        t1 = np.where(rng.random(len(o)) < 0.2, 0.3, np.inf).astype(np.float32)
+        got = scene.intersect(o, d, t0, t1, mode=mode)
+        assert got.hit.any() and not got.hit.all()
+        assert_same_hits(got, *cli_hits(tmp_path, name, o, d, t0, t1, mode), what=f"{name} {mode} bvh8")
+        assert np.array_equal(scene.occluded(o, d, t0, t1, mode=mode), got.hit), f"{name} {mode}"
+
+
+def test_bvh8_and_kdtree_give_the_same_bits_in_every_mode():
+    kd, bvh = raypack.Scene.load(KNOT), raypack.Scene.load(KNOT, accel="bvh8")
+    assert kd.accel == "kdtree"
+    lo, hi = kd.bounds
+    o, d = rays_at(np.random.default_rng(12), 20000, lo, hi)
+    reach = 0.5 * float(np.linalg.norm(hi - lo))
+    want = kd.intersect(o, d, mode="scalar", threads=1)
+    want_occ = kd.occluded(o, d, 0.0, reach, mode="scalar")
+    for mode in raypack.MODES:
+        assert same(bvh.intersect(o, d, mode=mode), want), mode
+        assert np.array_equal(bvh.occluded(o, d, 0.0, reach, mode=mode), want_occ), mode
+    for mode in ("packet", "packet4", "tile64", "stream"):
+        assert same(bvh.trace_image(width=40, height=30, mode=mode), kd.trace_image(width=40, height=30)), mode
+
+
 def test_every_mode_and_thread_count_gives_the_same_bits():
     scene = raypack.Scene.load(KNOT)
     lo, hi = scene.bounds
