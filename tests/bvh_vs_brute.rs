@@ -30,9 +30,8 @@ fn box_rays(bvh: &Bvh, count: usize, seed: u64) -> Vec<Ray> {
         .iter()
         .flat_map(|n| {
             (0..8).filter_map(move |s| {
-                let lo = Vec3::new(n.planes[0][s], n.planes[2][s], n.planes[4][s]);
-                let hi = Vec3::new(n.planes[1][s], n.planes[3][s], n.planes[5][s]);
-                lo.is_finite().then(|| Aabb::new(lo, hi))
+                let b = n.child_box(s);
+                b.min.is_finite().then_some(b)
             })
         })
         .collect();

@@ -63,6 +63,16 @@ impl Node8 {
         }
         self.child[slot] = word;
     }
+
+    /// The box of child `slot`, as the build wrote it (empty for an unused
+    /// slot).
+    pub fn child_box(&self, slot: usize) -> Aabb {
+        let p = &self.planes;
+        Aabb {
+            min: glam::Vec3::new(p[0][slot], p[2][slot], p[4][slot]),
+            max: glam::Vec3::new(p[1][slot], p[3][slot], p[5][slot]),
+        }
+    }
 }
 
 /// Shape and cost figures of a built BVH (`raypack bench --accel bvh8`).
@@ -128,10 +138,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return s;
         }
-        let area = |b: &Aabb| {
-            let e = b.extent();
-            (e.x * e.y + e.y * e.z + e.z * e.x) as f64
-        };
+        let area = |b: &Aabb| b.surface_area() as f64;
         let root = area(&self.bounds).max(f64::MIN_POSITIVE);
         let (mut used, mut prims) = (0usize, 0usize);
         let mut todo = vec![(0u32, 1u32, self.bounds)];
@@ -146,21 +153,10 @@ impl Bvh {
             s.sah_nodes += area(&b) / root;
             let node = &self.nodes[w as usize];
             for (slot, &c) in node.child.iter().enumerate() {
-                if c == EMPTY {
-                    continue;
+                if c != EMPTY {
+                    used += 1;
+                    todo.push((c, depth + 1, node.child_box(slot)));
                 }
-                used += 1;
-                let min = glam::Vec3::new(
-                    node.planes[0][slot],
-                    node.planes[2][slot],
-                    node.planes[4][slot],
-                );
-                let max = glam::Vec3::new(
-                    node.planes[1][slot],
-                    node.planes[3][slot],
-                    node.planes[5][slot],
-                );
-                todo.push((c, depth + 1, Aabb { min, max }));
             }
         }
         s.fill = used as f64 / (8 * s.nodes) as f64;
