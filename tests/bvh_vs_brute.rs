@@ -347,16 +347,19 @@ fn empty_and_planes_only_scenes() {
     }
 }
 
-/// The build does not depend on the number of threads: a one-thread pool and the
-/// global pool give the same nodes, bit for bit.
+/// The build does not depend on the number of threads: a one-thread pool, the
+/// global pool and the serial build give the same nodes, bit for bit, on a soup large
+/// enough that its top nodes bin and partition in jobs; and that tree answers as
+/// brute force does.
 #[test]
 fn parallel_build_equals_serial() {
-    let g = generate::random_soup(30_000, 0.02, 9);
-    let serial = rayon::ThreadPoolBuilder::new()
+    let g = generate::random_soup(90_000, 0.02, 9);
+    let one_thread = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap()
         .install(|| Bvh::build(&g));
+    let serial = Bvh::build_with(&g, false);
     let parallel = Bvh::build(&g);
     let bits = |b: &Bvh| -> Vec<u32> {
         b.nodes()
@@ -372,6 +375,21 @@ fn parallel_build_equals_serial() {
     };
     assert!(serial.nodes().len() > 100);
     assert_eq!(bits(&serial), bits(&parallel));
+    assert_eq!(bits(&one_thread), bits(&parallel));
+    let b = g.bounds();
+    let mut rays = random_rays(b.min, b.max, 200, 90);
+    rays.extend(box_rays(&parallel, 200, 91));
+    let brute = BruteForce::new(&g);
+    let mut hits = vec![Hit::MISS; rays.len()];
+    parallel.intersect_stream(&rays, &mut hits);
+    for (ray, hit) in rays.iter().zip(&hits) {
+        let want = brute.intersect(ray);
+        assert_eq!(
+            hit_bits(hit.is_hit().then_some(*hit)),
+            hit_bits(want),
+            "{ray:?}"
+        );
+    }
 }
 
 /// The statistics count what the tree holds: every triangle of a soup in one leaf,

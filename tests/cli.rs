@@ -896,6 +896,70 @@ fn info_figures_mean_what_they_say() {
     assert!(depth.contains("SAH splits stop at depth"), "{depth}");
 }
 
+/// `info --accel bvh8` builds the BVH: its JSON counts what `bench --accel bvh8`
+/// prints for the same tree, and its occupancy record on two threads is a share of
+/// the work (all of it for a tree too small to split across threads).
+#[test]
+fn info_reports_the_bvh_and_its_serial_part() {
+    let dir = scratch("info_bvh");
+    let json = dir.join("bvh.json");
+    let out = raypack(&[
+        "info",
+        "spd:balls:3",
+        "--accel",
+        "bvh8",
+        "--threads",
+        "2",
+        "--occupancy",
+        "--json",
+        s(&json),
+    ]);
+    check(&out, "info --accel bvh8");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let nodes = report["nodes"].as_u64().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(&format!("nodes            {nodes} 8-wide")),
+        "{stdout}"
+    );
+    let bench = raypack(&[
+        "bench",
+        "spd:balls:3",
+        "--accel",
+        "bvh8",
+        "--sets",
+        "shadow",
+        "--modes",
+        "stream",
+        "--threads",
+        "1",
+        "--repeat",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    check(&bench, "bench --accel bvh8");
+    let bench_out = String::from_utf8_lossy(&bench.stdout);
+    assert!(
+        bench_out.contains(&format!("8-wide BVH ({nodes} nodes")),
+        "{bench_out}"
+    );
+    assert!(report["bytes_per_primitive"].as_f64().unwrap() > 0.0);
+    let serial = report["occupancy"]["serial_fraction"].as_f64();
+    // A pool of two threads on fewer cores reports no serial part; this tree is too
+    // small to split on two threads, so all of it is.
+    if std::thread::available_parallelism().map_or(1, |n| n.get()) >= 2 {
+        let f = serial.unwrap_or_else(|| panic!("{report}"));
+        assert!(f > 0.5 && f <= 1.0, "{report}");
+    } else {
+        assert!(serial.is_none(), "{report}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// A triangle whose corners are finite but so far apart that its area overflows f32 is
 /// not called zero-area.
 #[test]

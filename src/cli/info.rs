@@ -12,6 +12,7 @@
 
 use anyhow::Context;
 use raypack::accel::Accel;
+use raypack::accel::bvh::Bvh;
 use raypack::accel::kdtree::{BuildParams, KdTree};
 use raypack::accel::occupancy::{Meter, Occupancy};
 use raypack::rayset::standard;
@@ -42,6 +43,10 @@ pub struct Args {
     /// Also write what is printed, and the build's peak extra memory, as JSON to FILE.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// The accelerator to build: kdtree (the SAH kd-tree) or bvh8 (the 8-wide BVH; the
+    /// kd-tree's flags and `--primary` do not apply to it).
+    #[arg(long, default_value = "kdtree", value_parser = ["kdtree", "bvh8"])]
+    pub accel: String,
 }
 
 #[derive(Serialize, Debug)]
@@ -180,32 +185,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .num_threads(threads)
         .build()
         .context("starting the build threads")?;
-    let mut seconds = Vec::new();
-    let mut occupancies = Vec::new();
-    let mut tree = None;
-    let mut peak_extra: Option<u64> = None;
-    for _ in 0..args.repeat {
-        drop(tree.take());
-        let occupancy = Occupancy::new();
-        let meter = if args.occupancy {
-            occupancy.meter()
-        } else {
-            Meter::OFF
-        };
-        let before = reset_peak();
-        let start = Instant::now();
-        tree = Some(pool.install(|| KdTree::build_metered(geometry, &params, meter)));
-        let elapsed = start.elapsed().as_secs_f64();
-        seconds.push(elapsed);
-        occupancies.push((elapsed, occupancy));
-        let extra = before
-            .zip(proc_status_bytes("VmHWM"))
-            .map(|(before, peak)| peak.saturating_sub(before));
-        peak_extra = peak_extra.max(extra);
+    if args.accel == "bvh8" {
+        return run_bvh(&args, &scene, &pool, threads);
     }
-    let tree = tree.expect("at least one build");
-    let all_seconds = seconds.clone();
-    seconds.sort_by(f64::total_cmp);
+    let Builds {
+        tree,
+        seconds,
+        occupancies,
+        peak_extra,
+    } = timed_builds(&pool, args.repeat, args.occupancy, |meter| {
+        KdTree::build_metered(geometry, &params, meter)
+    });
     let s = tree.stats(&params);
     let tris = geometry.triangles.len();
     let bounded = tris + geometry.spheres.len() + geometry.boxes.len();
@@ -228,45 +218,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bounded,
         super::count(degenerate, "degenerate triangle"),
     );
-    outln!(
-        "build            {:.3} s median of {} on {} (min {:.3} s), {} builder",
-        seconds[seconds.len() / 2],
-        super::count(seconds.len(), "build"),
-        super::count(threads, "thread"),
-        seconds[0],
-        params.builder
-    );
-    let occupancy = args.occupancy.then(|| {
-        occupancies.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let report = OccupancyReport::new(&occupancies[occupancies.len() / 2].1, threads);
-        let at: Vec<String> = (report.seconds_working.iter())
-            .map(|t| format!("{t:.4}"))
-            .collect();
-        outln!(
-            "occupancy        seconds with 0, 1, 2, ... threads working: {} (median build)",
-            at.join(" / ")
-        );
-        if let (Some(f), Some(s)) = (report.serial_fraction, report.amdahl_16) {
-            outln!(
-                "serial part      {:.1}% of the work ran with fewer than {threads} threads working: Amdahl predicts {s:.1}x on 16 threads",
-                100.0 * f
-            );
-        }
-        outln!(
-            "parallelism      {:.1}x on 16 cores over one, from the threads working at a time ({} on {})",
-            report.profile_16,
-            super::count(threads, "thread"),
-            super::count(report.cores, "core"),
-        );
-        report
-    });
-    match peak_extra {
-        Some(bytes) => outln!(
-            "build peak extra {:.2} MiB (peak resident set over the build, tree included)",
-            bytes as f64 / (1 << 20) as f64
-        ),
-        None => outln!("build peak extra unknown"),
-    }
+    print_build(&seconds, threads, &format!("{} builder", params.builder));
+    let occupancy = args
+        .occupancy
+        .then(|| print_occupancy(occupancies, threads));
+    print_peak_extra(peak_extra);
     outln!("nodes            {}", s.nodes);
     outln!("leaves           {} ({} empty)", s.leaves, s.empty_leaves);
     outln!(
@@ -357,11 +313,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             builder: params.builder.to_string(),
             isa: super::isa_label(),
             threads,
-            build_seconds: Seconds {
-                median: seconds[seconds.len() / 2],
-                min: seconds[0],
-                all: all_seconds,
-            },
+            build_seconds: seconds,
             build_peak_extra_bytes: peak_extra,
             triangles: tris,
             spheres: geometry.spheres.len(),
@@ -387,6 +339,199 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             occupancy,
             memory,
             primary,
+        };
+        super::write_json(path, &report)?;
+    }
+    Ok(())
+}
+
+/// What [`timed_builds`] returns: the last tree, the builds' seconds, every build's
+/// occupancy record with its seconds, and the largest peak extra memory.
+struct Builds<T> {
+    tree: T,
+    seconds: Seconds,
+    occupancies: Vec<(f64, Occupancy)>,
+    peak_extra: Option<u64>,
+}
+
+/// Runs `build` `repeat` times on `pool`, each with a meter when `occupancy`.
+fn timed_builds<T: Send>(
+    pool: &rayon::ThreadPool,
+    repeat: usize,
+    occupancy: bool,
+    build: impl Fn(Meter) -> T + Sync,
+) -> Builds<T> {
+    let mut seconds = Vec::new();
+    let mut occupancies = Vec::new();
+    let mut tree = None;
+    let mut peak_extra: Option<u64> = None;
+    for _ in 0..repeat {
+        drop(tree.take());
+        let record = Occupancy::new();
+        let meter = if occupancy {
+            record.meter()
+        } else {
+            Meter::OFF
+        };
+        let before = reset_peak();
+        let start = Instant::now();
+        tree = Some(pool.install(|| build(meter)));
+        let elapsed = start.elapsed().as_secs_f64();
+        seconds.push(elapsed);
+        occupancies.push((elapsed, record));
+        let extra = before
+            .zip(proc_status_bytes("VmHWM"))
+            .map(|(before, peak)| peak.saturating_sub(before));
+        peak_extra = peak_extra.max(extra);
+    }
+    let mut sorted = seconds.clone();
+    sorted.sort_by(f64::total_cmp);
+    Builds {
+        tree: tree.expect("at least one build"),
+        seconds: Seconds {
+            median: sorted[sorted.len() / 2],
+            min: sorted[0],
+            all: seconds,
+        },
+        occupancies,
+        peak_extra,
+    }
+}
+
+/// Prints the builds' times.
+fn print_build(seconds: &Seconds, threads: usize, what: &str) {
+    outln!(
+        "build            {:.3} s median of {} on {} (min {:.3} s), {what}",
+        seconds.median,
+        super::count(seconds.all.len(), "build"),
+        super::count(threads, "thread"),
+        seconds.min,
+    );
+}
+
+/// Prints the median build's occupancy record and returns it.
+fn print_occupancy(mut occupancies: Vec<(f64, Occupancy)>, threads: usize) -> OccupancyReport {
+    occupancies.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let report = OccupancyReport::new(&occupancies[occupancies.len() / 2].1, threads);
+    let at: Vec<String> = (report.seconds_working.iter())
+        .map(|t| format!("{t:.4}"))
+        .collect();
+    outln!(
+        "occupancy        seconds with 0, 1, 2, ... threads working: {} (median build)",
+        at.join(" / ")
+    );
+    if let (Some(f), Some(s)) = (report.serial_fraction, report.amdahl_16) {
+        outln!(
+            "serial part      {:.1}% of the work ran with fewer than {threads} threads working: Amdahl predicts {s:.1}x on 16 threads",
+            100.0 * f
+        );
+    }
+    outln!(
+        "parallelism      {:.1}x on 16 cores over one, from the threads working at a time ({} on {})",
+        report.profile_16,
+        super::count(threads, "thread"),
+        super::count(report.cores, "core"),
+    );
+    report
+}
+
+/// Prints the build's peak extra memory.
+fn print_peak_extra(peak_extra: Option<u64>) {
+    match peak_extra {
+        Some(bytes) => outln!(
+            "build peak extra {:.2} MiB (peak resident set over the build, tree included)",
+            bytes as f64 / (1 << 20) as f64
+        ),
+        None => outln!("build peak extra unknown"),
+    }
+}
+
+/// What `info --accel bvh8` prints, for scripts (`--json`).
+#[derive(Serialize, Debug)]
+struct BvhReport {
+    scene: String,
+    isa: String,
+    threads: usize,
+    build_seconds: Seconds,
+    build_peak_extra_bytes: Option<u64>,
+    triangles: usize,
+    nodes: usize,
+    leaves: usize,
+    fill: f64,
+    mean_leaf: f64,
+    depth: u32,
+    sah_nodes: f64,
+    sah_leaves: f64,
+    bytes: usize,
+    bytes_per_primitive: f64,
+    occupancy: Option<OccupancyReport>,
+}
+
+/// `info --accel bvh8`: the BVH's builds, shape and memory.
+fn run_bvh(
+    args: &Args,
+    scene: &scenes::BenchScene,
+    pool: &rayon::ThreadPool,
+    threads: usize,
+) -> anyhow::Result<()> {
+    let geometry = &scene.geometry;
+    let Builds {
+        tree,
+        seconds,
+        occupancies,
+        peak_extra,
+    } = timed_builds(pool, args.repeat, args.occupancy, |meter| {
+        Bvh::build_metered(geometry, threads > 1, meter)
+    });
+    let bounded = geometry.bounded_count();
+    outln!("scene            {}", args.scene);
+    outln!("kernels          {}", super::isa_label());
+    outln!("primitives       {}", super::primitive_counts(geometry));
+    print_build(&seconds, threads, "8-wide BVH");
+    let occupancy = args
+        .occupancy
+        .then(|| print_occupancy(occupancies, threads));
+    print_peak_extra(peak_extra);
+    let s = tree.stats();
+    outln!(
+        "nodes            {} 8-wide ({:.0}% of child slots used), depth {}",
+        s.nodes,
+        100.0 * s.fill,
+        s.depth
+    );
+    outln!(
+        "leaves           {} of {:.2} primitives",
+        s.leaves,
+        s.mean_leaf
+    );
+    outln!(
+        "SAH              {:.2} node steps + {:.2} leaves per ray through the root box",
+        s.sah_nodes,
+        s.sah_leaves
+    );
+    let per_prim = tree.bytes() as f64 / bounded.max(1) as f64;
+    outln!(
+        "memory total     {:>10.2} MiB  {per_prim:>6.1} bytes/primitive",
+        tree.bytes() as f64 / (1 << 20) as f64
+    );
+    if let Some(path) = &args.json {
+        let report = BvhReport {
+            scene: args.scene.clone(),
+            isa: super::isa_label(),
+            threads,
+            build_seconds: seconds,
+            build_peak_extra_bytes: peak_extra,
+            triangles: geometry.triangles.len(),
+            nodes: s.nodes,
+            leaves: s.leaves,
+            fill: s.fill,
+            mean_leaf: s.mean_leaf,
+            depth: s.depth,
+            sah_nodes: s.sah_nodes,
+            sah_leaves: s.sah_leaves,
+            bytes: tree.bytes(),
+            bytes_per_primitive: per_prim,
+            occupancy,
         };
         super::write_json(path, &report)?;
     }

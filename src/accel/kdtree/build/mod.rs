@@ -442,7 +442,12 @@ impl KdTree {
 /// first name them, then those no leaf holds (degenerate ones) in id order. In
 /// parallel, each triangle's first position is found first (a minimum over its
 /// mentions), then each chunk keeps the mentions that are first ones.
-fn leaf_order(prim_indices: &[u32], tri_count: u32, parallel: bool, meter: Meter) -> Vec<u32> {
+pub(crate) fn leaf_order(
+    prim_indices: &[u32],
+    tri_count: u32,
+    parallel: bool,
+    meter: Meter,
+) -> Vec<u32> {
     if !parallel {
         let mut seen = vec![false; tri_count as usize];
         let mut order = Vec::with_capacity(tri_count as usize);
@@ -496,7 +501,7 @@ fn leaf_order(prim_indices: &[u32], tri_count: u32, parallel: bool, meter: Meter
 }
 
 /// The inverse of the permutation `order`: `slot_of[order[s]] = s`.
-fn inverse(order: &[u32], parallel: bool, meter: Meter) -> Vec<u32> {
+pub(crate) fn inverse(order: &[u32], parallel: bool, meter: Meter) -> Vec<u32> {
     if !parallel {
         let mut slot_of = vec![0u32; order.len()];
         for (slot, &p) in order.iter().enumerate() {
