@@ -72,11 +72,63 @@ impl Prims {
                 )
             },
         );
+        self.tris_lanes_rows::<W, ANY_HIT>(
+            n,
+            #[inline(always)]
+            |i| tris[i] as usize,
+            [row(0), row(1), row(2)],
+            ray,
+            best,
+        )
+    }
+
+    /// [`Prims::tris_lanes`] of the `n` records from slot `first` on (a leaf whose
+    /// records lie in leaf order): no slot list to read first.
+    #[inline(always)]
+    pub(crate) fn tris_lanes_run<W: Simd, const ANY_HIT: bool>(
+        &self,
+        first: usize,
+        n: usize,
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
+        debug_assert!(n <= W::LANES);
+        let recs = &self.tris[first..first + n];
+        let row = inl(
+            #[inline(always)]
+            |r: usize| {
+                Vf::<W>::from_rows4(
+                    #[inline(always)]
+                    |i| &recs[i.min(n - 1)].rows()[r],
+                )
+            },
+        );
+        self.tris_lanes_rows::<W, ANY_HIT>(
+            n,
+            #[inline(always)]
+            |i| first + i,
+            [row(0), row(1), row(2)],
+            ray,
+            best,
+        )
+    }
+
+    /// [`Prims::tris_lanes`] of records already transposed: `rows[r][f]` holds field
+    /// `f` of row `r` of each slot's record, one per lane.
+    #[inline(always)]
+    pub(crate) fn tris_lanes_rows<W: Simd, const ANY_HIT: bool>(
+        &self,
+        n: usize,
+        slot_of: impl Fn(usize) -> usize,
+        rows: [[Vf<W>; 4]; 3],
+        ray: &Ray,
+        best: &mut Hit,
+    ) -> bool {
         let [
             [n_u, n_v, n_d, k_id],
             [b_nu, b_nv, b_d, err],
             [c_nu, c_nv, c_d, mag],
-        ] = [row(0), row(1), row(2)];
+        ] = rows;
         let valid = W::all_bits() >> (W::LANES - n);
         let k = k_id.to_bits() & Vu::<W>::splat(3);
         let (k_gt0, k_gt1) = (k.cmp_gt(Vu::<W>::splat(0)), k.cmp_gt(Vu::<W>::splat(1)));
@@ -124,7 +176,7 @@ impl Prims {
                 continue;
             }
             let (ei, bi) = (edge.lane(i), bound.lane(i));
-            let slot = tris[i] as usize;
+            let slot = slot_of(i);
             let hit = if ei >= bi {
                 (ti > ray.t_min && ti < limit).then(
                     #[inline(always)]

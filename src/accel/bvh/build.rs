@@ -475,11 +475,15 @@ impl Bvh {
                 r.prim
             }
         };
-        let slots = if parallel {
+        let slots: Vec<u32> = if parallel {
             meter.hand_off(|| meter.jobs(refs.par_iter()).map(slot).collect())
         } else {
             refs.iter().map(slot).collect()
         };
+        debug_assert!(
+            !prims.triangles_only() || slots.iter().enumerate().all(|(j, &s)| s == j as u32),
+            "a scene of triangles only has its records in leaf order"
+        );
         Bvh {
             nodes,
             slots,

@@ -54,8 +54,14 @@ impl Bvh {
             }
             crate::simd::prefetch(&node.child);
         } else {
+            let (first, _) = Bvh::leaf_run(w);
+            let slot = if self.prims.triangles_only() {
+                first
+            } else {
+                self.slots[first] as usize
+            };
             // A sphere's or a box's slot lies past the triangles' records.
-            if let Some(tri) = self.prims.tris.get(self.leaf(w)[0] as usize) {
+            if let Some(tri) = self.prims.tris.get(slot) {
                 crate::simd::prefetch(tri);
             }
         }
@@ -257,10 +263,13 @@ impl Bvh {
             } else {
                 let slots = self.leaf(cur);
                 let hit = if triangles_only {
-                    if slots.len() <= 4 {
-                        self.prims.tris_lanes::<W::X4, ANY_HIT>(slots, ray, best)
+                    // The records of slots `first..first + n` (the module docs).
+                    let (first, n) = Bvh::leaf_run(cur);
+                    if n <= 4 {
+                        self.prims
+                            .tris_lanes_run::<W::X4, ANY_HIT>(first, n, ray, best)
                     } else {
-                        self.prims.tris_lanes::<W, ANY_HIT>(slots, ray, best)
+                        self.prims.tris_lanes_run::<W, ANY_HIT>(first, n, ray, best)
                     }
                 } else if ANY_HIT {
                     self.prims.occludes_leaf(slots, ray)
