@@ -897,8 +897,9 @@ fn info_figures_mean_what_they_say() {
 }
 
 /// `info --accel bvh8` builds the BVH: its JSON counts what `bench --accel bvh8`
-/// prints for the same tree, and its occupancy record on two threads is a share of
-/// the work (all of it for a tree too small to split across threads).
+/// prints for the same tree, its occupancy record on two threads is a share of the
+/// work (all of it for a tree too small to split across threads), and its primary
+/// rays hit what the kd-tree's do.
 #[test]
 fn info_reports_the_bvh_and_its_serial_part() {
     let dir = scratch("info_bvh");
@@ -948,6 +949,25 @@ fn info_reports_the_bvh_and_its_serial_part() {
         "{bench_out}"
     );
     assert!(report["bytes_per_primitive"].as_f64().unwrap() > 0.0);
+    // `--primary` times each tree's one-ray walk on the same rays: the same hits.
+    let checksum = |accel: &str| {
+        let path = dir.join(format!("{accel}.json"));
+        let out = raypack(&[
+            "info",
+            "spd:balls:3",
+            "--accel",
+            accel,
+            "--primary",
+            "--json",
+            s(&path),
+        ]);
+        check(&out, "info --primary");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert!(v["primary"]["hit_fraction"].as_f64().unwrap() > 0.0, "{v}");
+        v["primary"]["checksum"].as_str().unwrap().to_string()
+    };
+    assert_eq!(checksum("kdtree"), checksum("bvh8"));
     let serial = report["occupancy"]["serial_fraction"].as_f64();
     // A pool of two threads on fewer cores reports no serial part; this tree is too
     // small to split on two threads, so all of it is.

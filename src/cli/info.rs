@@ -1,6 +1,8 @@
-//! `raypack info SCENE`: builds the kd-tree of a scene (an OBJ file or a TOML scene) and
-//! prints its statistics: shape, SAH cost, memory, build time; with `--primary`, also
-//! the scalar primary-ray rate of the scene's camera on one thread.
+//! `raypack info SCENE`: builds the kd-tree of a scene (an OBJ file or a TOML scene), or
+//! with `--accel bvh8` its 8-wide BVH, and prints its statistics: shape, SAH figures,
+//! memory, build time; with `--occupancy`, how many threads worked on the build; with
+//! `--primary`, also the one-ray-at-a-time primary-ray rate of the scene's camera on one
+//! thread.
 //!
 //! SCENE is read as `raypack bench` reads it (a TOML scene, an OBJ mesh, or a name from
 //! ../shared/scenes/cameras.toml), and the primary rays are RAYS.md's standard set.
@@ -33,7 +35,8 @@ pub struct Args {
     pub repeat: usize,
     #[command(flatten)]
     pub tree: super::TreeArgs,
-    /// Also trace the camera's 1024x768 primary rays on one thread (scalar path).
+    /// Also trace the camera's 1024x768 primary rays on one thread, one at a time (the
+    /// kd-tree's scalar path, or the BVH's single-ray walk).
     #[arg(long)]
     pub primary: bool,
     /// Also mark how many threads work on each build at each moment and print the
@@ -43,8 +46,9 @@ pub struct Args {
     /// Also write what is printed, and the build's peak extra memory, as JSON to FILE.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// The accelerator to build: kdtree (the SAH kd-tree) or bvh8 (the 8-wide BVH; the
-    /// kd-tree's flags and `--primary` do not apply to it).
+    /// The accelerator to build: kdtree (the SAH kd-tree) or bvh8 (the 8-wide BVH, whose
+    /// build the kd-tree's flags do not change; `--primary` then times its single-ray
+    /// walk).
     #[arg(long, default_value = "kdtree", value_parser = ["kdtree", "bvh8"])]
     pub accel: String,
 }
@@ -274,39 +278,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
         );
     }
-    let mut primary = None;
-    if args.primary {
-        let (w, h) = (standard::WIDTH, standard::HEIGHT);
-        let rays = standard::primary(&scene.view, w, h)?.rays;
-        let mut best = f64::INFINITY;
-        let mut checksum = 0u64;
-        let mut hits = 0;
-        for _ in 0..3 {
-            let start = Instant::now();
-            (checksum, hits) =
-                rays.iter()
-                    .fold((0u64, 0usize), |(sum, n), r| match tree.intersect(r) {
-                        Some(hit) => (
-                            sum.wrapping_add(hit.prim as u64 ^ hit.t.to_bits() as u64),
-                            n + 1,
-                        ),
-                        None => (sum, n),
-                    });
-            best = best.min(start.elapsed().as_secs_f64());
-        }
-        let rate = rays.len() as f64 / best / 1e6;
-        let hit_fraction = hits as f64 / rays.len() as f64;
-        outln!(
-            "primary rays     {rate:.2} Mrays/s scalar, 1 thread, best of 3 ({w}x{h}, {:.1}% hit, checksum {checksum:016x})",
-            100.0 * hit_fraction
-        );
-        primary = Some(Primary {
-            mrays_per_s: rate,
-            rays: rays.len(),
-            hit_fraction,
-            checksum: format!("{checksum:016x}"),
-        });
-    }
+    let primary = if args.primary {
+        Some(time_primary(&tree, &scene.view, "scalar")?)
+    } else {
+        None
+    };
     if let Some(path) = &args.json {
         let report = Report {
             scene: args.scene.clone(),
@@ -398,6 +374,46 @@ fn timed_builds<T: Send>(
     }
 }
 
+/// Times the standard primary set of `view` through `accel` one ray at a time on this
+/// thread (best of 3), prints the rate, the hit share and a checksum of the hits (the
+/// same for every accelerator: they answer bit for bit alike), and returns them.
+fn time_primary(
+    accel: &dyn Accel,
+    view: &raypack::scene::View,
+    walk: &str,
+) -> anyhow::Result<Primary> {
+    let (w, h) = (standard::WIDTH, standard::HEIGHT);
+    let rays = standard::primary(view, w, h)?.rays;
+    let mut best = f64::INFINITY;
+    let mut checksum = 0u64;
+    let mut hits = 0;
+    for _ in 0..3 {
+        let start = Instant::now();
+        (checksum, hits) =
+            rays.iter()
+                .fold((0u64, 0usize), |(sum, n), r| match accel.intersect(r) {
+                    Some(hit) => (
+                        sum.wrapping_add(hit.prim as u64 ^ hit.t.to_bits() as u64),
+                        n + 1,
+                    ),
+                    None => (sum, n),
+                });
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    let rate = rays.len() as f64 / best / 1e6;
+    let hit_fraction = hits as f64 / rays.len() as f64;
+    outln!(
+        "primary rays     {rate:.2} Mrays/s {walk}, 1 thread, best of 3 ({w}x{h}, {:.1}% hit, checksum {checksum:016x})",
+        100.0 * hit_fraction
+    );
+    Ok(Primary {
+        mrays_per_s: rate,
+        rays: rays.len(),
+        hit_fraction,
+        checksum: format!("{checksum:016x}"),
+    })
+}
+
 /// Prints the builds' times.
 fn print_build(seconds: &Seconds, threads: usize, what: &str) {
     outln!(
@@ -465,6 +481,7 @@ struct BvhReport {
     bytes: usize,
     bytes_per_primitive: f64,
     occupancy: Option<OccupancyReport>,
+    primary: Option<Primary>,
 }
 
 /// `info --accel bvh8`: the BVH's builds, shape and memory.
@@ -514,6 +531,11 @@ fn run_bvh(
         "memory total     {:>10.2} MiB  {per_prim:>6.1} bytes/primitive",
         tree.bytes() as f64 / (1 << 20) as f64
     );
+    let primary = if args.primary {
+        Some(time_primary(&tree, &scene.view, "single-ray walk")?)
+    } else {
+        None
+    };
     if let Some(path) = &args.json {
         let report = BvhReport {
             scene: args.scene.clone(),
@@ -532,6 +554,7 @@ fn run_bvh(
             bytes: tree.bytes(),
             bytes_per_primitive: per_prim,
             occupancy,
+            primary,
         };
         super::write_json(path, &report)?;
     }

@@ -61,7 +61,7 @@ pub enum Command {
     Render(render::Args),
     /// Measure rays per second on a scene.
     Bench(bench::Args),
-    /// Build the kd-tree of a scene and print its statistics.
+    /// Build the kd-tree (or with --accel bvh8 the BVH) of a scene and print its statistics.
     Info(info::Args),
     /// Trace a ray file and write the hits file.
     Trace(trace::Args),
