@@ -12,7 +12,7 @@
 //! bunny's diffuse streams (perf/log/stream.md, "Fifteenth session").
 
 use super::Prims;
-use super::triaccel::{exact_rule, max_abs};
+use super::triaccel::{TriAccel, exact_rule, max_abs};
 use super::triaccel_packet::Projected;
 use crate::ray::{Hit, Ray};
 use crate::simd::{Float, LaneMask, Simd, Uint, Vf, Vu, inl};
@@ -57,26 +57,12 @@ impl Prims {
         best: &mut Hit,
     ) -> bool {
         debug_assert!(tris.len() <= W::LANES);
-        let n = tris.len();
-        let rec = inl(
+        self.tris_lanes_with::<W, ANY_HIT>(
+            tris.len(),
             #[inline(always)]
-            |i: usize| &self.tris[tris[i.min(n - 1)] as usize],
-        );
-        // The records' rows, transposed: field per vector, triangle per lane.
-        let row = inl(
-            #[inline(always)]
-            |r: usize| {
-                Vf::<W>::from_rows4(
-                    #[inline(always)]
-                    |i| &rec(i).rows()[r],
-                )
-            },
-        );
-        self.tris_lanes_rows::<W, ANY_HIT>(
-            n,
+            |i| &self.tris[tris[i] as usize],
             #[inline(always)]
             |i| tris[i] as usize,
-            [row(0), row(1), row(2)],
             ray,
             best,
         )
@@ -94,41 +80,44 @@ impl Prims {
     ) -> bool {
         debug_assert!(n <= W::LANES);
         let recs = &self.tris[first..first + n];
-        let row = inl(
-            #[inline(always)]
-            |r: usize| {
-                Vf::<W>::from_rows4(
-                    #[inline(always)]
-                    |i| &recs[i.min(n - 1)].rows()[r],
-                )
-            },
-        );
-        self.tris_lanes_rows::<W, ANY_HIT>(
+        self.tris_lanes_with::<W, ANY_HIT>(
             n,
             #[inline(always)]
+            |i| &recs[i],
+            #[inline(always)]
             |i| first + i,
-            [row(0), row(1), row(2)],
             ray,
             best,
         )
     }
 
-    /// [`Prims::tris_lanes`] of records already transposed: `rows[r][f]` holds field
-    /// `f` of row `r` of each slot's record, one per lane.
+    /// The test of [`Prims::tris_lanes`] on `n` records: `rec(i)` is lane `i`'s record
+    /// and `slot_of(i)` its slot.
     #[inline(always)]
-    pub(crate) fn tris_lanes_rows<W: Simd, const ANY_HIT: bool>(
-        &self,
+    fn tris_lanes_with<'a, W: Simd, const ANY_HIT: bool>(
+        &'a self,
         n: usize,
+        rec: impl Fn(usize) -> &'a TriAccel,
         slot_of: impl Fn(usize) -> usize,
-        rows: [[Vf<W>; 4]; 3],
         ray: &Ray,
         best: &mut Hit,
     ) -> bool {
+        // The records' rows, transposed: field per vector, triangle per lane (the
+        // lanes past `n` repeat the last record).
+        let row = inl(
+            #[inline(always)]
+            |r: usize| {
+                Vf::<W>::from_rows4(
+                    #[inline(always)]
+                    |i| &rec(i.min(n - 1)).rows()[r],
+                )
+            },
+        );
         let [
             [n_u, n_v, n_d, k_id],
             [b_nu, b_nv, b_d, err],
             [c_nu, c_nv, c_d, mag],
-        ] = rows;
+        ] = [row(0), row(1), row(2)];
         let valid = W::all_bits() >> (W::LANES - n);
         let k = k_id.to_bits() & Vu::<W>::splat(3);
         let (k_gt0, k_gt1) = (k.cmp_gt(Vu::<W>::splat(0)), k.cmp_gt(Vu::<W>::splat(1)));

@@ -278,11 +278,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
         );
     }
-    let primary = if args.primary {
-        Some(time_primary(&tree, &scene.view, "scalar")?)
-    } else {
-        None
-    };
+    let primary = (args.primary)
+        .then(|| time_primary(&tree, &scene.view, "scalar"))
+        .transpose()?;
     if let Some(path) = &args.json {
         let report = Report {
             scene: args.scene.clone(),
@@ -531,11 +529,9 @@ fn run_bvh(
         "memory total     {:>10.2} MiB  {per_prim:>6.1} bytes/primitive",
         tree.bytes() as f64 / (1 << 20) as f64
     );
-    let primary = if args.primary {
-        Some(time_primary(&tree, &scene.view, "single-ray walk")?)
-    } else {
-        None
-    };
+    let primary = (args.primary)
+        .then(|| time_primary(&tree, &scene.view, "single-ray walk"))
+        .transpose()?;
     if let Some(path) = &args.json {
         let report = BvhReport {
             scene: args.scene.clone(),
