@@ -220,8 +220,81 @@ pub fn auto_mode(rays: &[Ray], scale: f32) -> Mode {
 /// [`auto_mode`] judges one group of consecutive rays in this many.
 const AUTO_STRIDE: usize = 4;
 
+/// The index of whichever of `accels` traces `sample` (lying in `order`) sooner in
+/// `mode`, each timed once on the calling thread, in turn (0 when `accels` is empty).
+/// Every accelerator gives the same answers, so this picks speed only: it is how the
+/// Python package's `accel="auto"` chooses between the kd-tree and the BVH, on a
+/// sample of the very rays it is asked about. Which tree is faster depends on the
+/// scene, the rays and the CPU together (perf/log/python.md), so it is measured, not
+/// guessed.
+pub fn faster(
+    accels: &[&dyn Accel],
+    sample: &[Ray],
+    order: Order,
+    query: Query,
+    mode: Mode,
+) -> usize {
+    let mut hits = vec![Hit::MISS; sample.len()];
+    let mut occluded = vec![false; sample.len()];
+    let time = |a: &dyn Accel, hits: &mut [Hit], occluded: &mut [bool]| {
+        let start = std::time::Instant::now();
+        match query {
+            Query::Closest => intersect_into(a, sample, order, mode, hits),
+            Query::Occluded => occluded_into(a, sample, order, mode, occluded),
+        }
+        start.elapsed()
+    };
+    let mut best = (0, std::time::Duration::MAX);
+    for (i, a) in accels.iter().enumerate() {
+        let t = time(*a, &mut hits, &mut occluded);
+        if t < best.1 {
+            best = (i, t);
+        }
+    }
+    best.0
+}
+
+/// The rays [`faster`] races on, as ranges of `0..n`: [`RACE_BLOCKS`] runs of [`CHUNK`] /
+/// [`RACE_BLOCKS`] consecutive rays spread evenly (runs of whole 16x16 tiles of an
+/// image set, whose tiles lie in runs of 256), or all of `0..n` when that is no more.
+pub fn race_ranges(n: usize) -> Vec<std::ops::Range<usize>> {
+    let block = CHUNK / RACE_BLOCKS;
+    if n <= CHUNK {
+        return std::iter::once(0..n).collect();
+    }
+    let step = (n - block) / (RACE_BLOCKS - 1) / block * block;
+    (0..RACE_BLOCKS)
+        .map(|k| k * step..k * step + block)
+        .collect()
+}
+
+/// [`race_ranges`] takes this many runs, [`CHUNK`] rays in all.
+pub const RACE_BLOCKS: usize = 8;
+
+const _: () = assert!((CHUNK / RACE_BLOCKS).is_multiple_of(TILE_PIXELS));
+
+/// [`trace_image`] through whichever of `accels` traces a sample of the image's rays
+/// sooner ([`faster`]), and its index.
+pub fn trace_image_faster(
+    accels: &[&dyn Accel],
+    view: &crate::scene::View,
+    width: u32,
+    height: u32,
+    mode: Mode,
+) -> Result<(Vec<Ray>, Vec<Hit>, usize), super::RaySetError> {
+    let set = super::standard::padded_image_set(view, width, height)?;
+    let sample: Vec<Ray> = race_ranges(set.len())
+        .into_iter()
+        .flat_map(|r| set.rays[r].iter().copied())
+        .collect();
+    let pick = faster(accels, &sample, Order::of(&set), Query::Closest, mode);
+    let hits = trace_hits(accels[pick], &set, mode);
+    let (rays, hits) = image_of(&set, &hits, width, height);
+    Ok((rays, hits, pick))
+}
+
 /// Closest hit or any hit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Query {
     Closest,
     Occluded,
@@ -374,14 +447,19 @@ pub fn trace_image<A: Accel + ?Sized>(
 ) -> Result<(Vec<Ray>, Vec<Hit>), super::RaySetError> {
     let set = super::standard::padded_image_set(view, width, height)?;
     let hits = trace_hits(accel, &set, mode);
-    Ok((0..height)
+    Ok(image_of(&set, &hits, width, height))
+}
+
+/// The rays and hits of the `width` x `height` image in a padded image set, row-major.
+fn image_of(set: &RaySet, hits: &[Hit], width: u32, height: u32) -> (Vec<Ray>, Vec<Hit>) {
+    (0..height)
         .into_par_iter()
         .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
         .map(|(x, y)| {
             let i = super::pixel_packet_index(x, y, set.width);
             (set.rays[i], hits[i])
         })
-        .unzip())
+        .unzip()
 }
 
 /// Traces one chunk (lying in `order`) and folds the answers into a checksum (the timed
@@ -535,6 +613,43 @@ mod tests {
             assert_eq!((x0 % bw, y0 % bh), (0, 0));
         });
         assert!(seen.iter().all(|&n| n == 1));
+    }
+
+    #[test]
+    fn race_ranges_are_whole_tiles_inside_the_rays() {
+        for n in [0, 1, 100, CHUNK, CHUNK + 1, 3 * CHUNK + 17, 1_000_003] {
+            let ranges = race_ranges(n);
+            let total: usize = ranges.iter().map(|r| r.len()).sum();
+            assert_eq!(total, n.min(CHUNK), "{n} rays");
+            for (k, r) in ranges.iter().enumerate() {
+                assert!(r.end <= n, "{n} rays: {r:?}");
+                if n > CHUNK {
+                    assert_eq!(r.start % TILE_PIXELS, 0, "{n} rays: {r:?}");
+                    assert_eq!(r.len(), CHUNK / RACE_BLOCKS);
+                }
+                if k > 0 {
+                    assert!(ranges[k - 1].end <= r.start, "{n} rays: overlap at {r:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_race_names_one_of_its_runners() {
+        let (g, rays) = spheres_and_rays();
+        let brute = BruteForce::new(&g);
+        let kd = crate::accel::kdtree::KdTree::build(&g);
+        let accels: [&dyn Accel; 2] = [&brute, &kd];
+        for query in [Query::Closest, Query::Occluded] {
+            for mode in [Mode::Scalar, Mode::Stream, Mode::Packet8] {
+                assert!(faster(&accels, &rays, Order::Any, query, mode) < 2);
+                assert_eq!(faster(&accels[1..], &rays, Order::Any, query, mode), 0);
+            }
+        }
+        assert_eq!(
+            faster(&[], &rays, Order::Any, Query::Closest, Mode::Stream),
+            0
+        );
     }
 
     #[test]
