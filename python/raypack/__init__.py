@@ -154,8 +154,8 @@ def _hits(raw, lead: Tuple[int, ...]) -> Hits:
 
 
 def _accel(accel: str) -> str:
-    if accel not in ("kdtree", "bvh8"):
-        raise ValueError(f'accel must be "kdtree" or "bvh8", not {accel!r}')
+    if accel not in ("auto", "kdtree", "bvh8"):
+        raise ValueError(f'accel must be "auto", "kdtree" or "bvh8", not {accel!r}')
     return accel
 
 
@@ -168,11 +168,18 @@ class Scene:
     Coordinates must be finite and indices in ``range(n)``, or :class:`Error` names the
     first that is not. The tree is built on ``threads`` workers (``None``: every core).
 
-    ``accel`` picks the tree the queries walk; both give the same answers, bit for bit.
-    ``"kdtree"`` (the SAH kd-tree) is fastest in interiors, on overlapping triangles and
-    on small scenes; ``"bvh8"`` (an 8-wide BVH) on isolated models, terrain and scenes of
-    many objects in empty space (perf/README.md in the repository). :func:`render`
-    always walks the kd-tree; a ``"bvh8"`` scene builds it at its first render.
+    ``accel`` picks the tree the queries walk; every choice gives the same answers, bit
+    for bit. ``"kdtree"`` (the SAH kd-tree) is usually fastest in interiors, on
+    overlapping triangles and on small scenes; ``"bvh8"`` (an 8-wide BVH) on isolated
+    models, terrain and scenes of many objects in empty space (perf/README.md in the
+    repository), but which one wins also depends on the rays and the CPU. ``"auto"``
+    (the default) builds both, at the cost of both trees' memory and build time. A
+    query of 65,536 rays or more goes to the tree that won the last race of its kind
+    (closest hits or any hit, and the mode its rays take); the first such query of a
+    kind, and every 16th after it, runs the race: each tree traces the same 4,096 of its
+    rays on one thread, and the faster answers. A smaller query goes to the last winner
+    of its query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a
+    ``"bvh8"`` scene builds it at its first render.
     """
 
     def __init__(
@@ -181,7 +188,7 @@ class Scene:
         triangles: ArrayLike,
         *,
         threads: Optional[int] = None,
-        accel: str = "kdtree",
+        accel: str = "auto",
     ):
         v = np.asarray(vertices)
         t = np.asarray(triangles)
@@ -204,7 +211,7 @@ class Scene:
 
     @classmethod
     def load(
-        cls, scene: str, *, threads: Optional[int] = None, accel: str = "kdtree"
+        cls, scene: str, *, threads: Optional[int] = None, accel: str = "auto"
     ) -> "Scene":
         """A scene as the ``raypack`` command reads one: an OBJ mesh (``.obj``), a scene
         file (``.toml``, its spheres, boxes and planes included), the name of a
@@ -221,8 +228,15 @@ class Scene:
 
     @property
     def accel(self) -> str:
-        """The tree the queries walk: ``"kdtree"`` or ``"bvh8"``."""
+        """The tree the queries walk: ``"auto"``, ``"kdtree"`` or ``"bvh8"``."""
         return self._scene.accel
+
+    @property
+    def last_accel(self) -> Tuple[str, str]:
+        """The tree (``"kdtree"`` or ``"bvh8"``) that answered the last query of each
+        kind, ``(closest hits, any hit)``: with ``accel="auto"``, the winner of the last
+        race (the BVH before any); else the scene's one tree."""
+        return self._scene.last_accel
 
     @property
     def triangle_count(self) -> int:
@@ -349,7 +363,8 @@ class Scene:
         """Closest hits of :meth:`camera_rays`, shaped ``(height, width)``, traced as
         an image: packets and tiles take blocks of neighbouring pixels, the fast way to
         trace coherent camera rays. The answers are :meth:`intersect`'s of the same rays,
-        bit for bit."""
+        bit for bit. With ``accel="auto"`` every call races the trees on 4,096 of the
+        image's rays (see :class:`Scene`)."""
         view = self._view(eye, target, up, vfov)
         w, h = _size("width", width), _size("height", height)
         raw = self._scene.trace_image(*view, w, h, _threads(threads), _mode(mode))

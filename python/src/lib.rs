@@ -16,6 +16,7 @@ use raypack::accel::{Accel, BATCH_RAYS, Mode};
 use raypack::geom::Geometry;
 use raypack::glam::{DVec3, Vec3};
 use raypack::ray::{Hit, Ray};
+use raypack::rayset::trace::Query;
 use raypack::rayset::{standard, trace};
 use raypack::render::gi::{GiScene, render_gi};
 use raypack::render::path::PathTracer;
@@ -55,14 +56,24 @@ struct Scene {
     /// The kd-tree: built with the scene when it answers the queries, else at the
     /// first render (the renderers walk the kd-tree).
     tree: OnceLock<KdTree>,
-    /// The 8-wide BVH when the scene was made with `accel="bvh8"`: it answers the
-    /// queries (the same answers, bit for bit).
+    /// The 8-wide BVH when the scene was made with `accel="bvh8"` or `"auto"`: it
+    /// answers the queries (the same answers, bit for bit).
     bvh: Option<Bvh>,
+    /// `accel="auto"`: the races' winners ([`Scene::pick`]).
+    auto: Option<Mutex<Wins>>,
     /// The diagonal of the scene's bounds, the scale `auto` judges ray origins by.
     scale: f32,
     /// Each triangle's unit normal, bit for bit [`Geometry::geometric_normal`]'s, so
     /// that a hit's normal costs one read.
     triangle_normals: Vec<Vec3>,
+}
+
+/// `accel="auto"`'s record of its races: the winner (0 the kd-tree, 1 the BVH) and the
+/// calls since the race, per query and mode, and the last winner per query.
+#[derive(Default)]
+struct Wins {
+    by_kind: HashMap<(Query, Mode), (usize, u32)>,
+    last: [usize; 2],
 }
 
 /// The rayon pool of `threads` workers (0: the global pool, one per core), kept for the
@@ -344,10 +355,33 @@ impl Scene {
         Scene::build(py, staged, not_renderable, threads, accel)
     }
 
-    /// The accelerator the queries take: "kdtree" or "bvh8".
+    /// The accelerator the queries take: "auto", "kdtree" or "bvh8".
     #[getter(accel)]
     fn accel_name(&self) -> &'static str {
-        if self.bvh.is_some() { "bvh8" } else { "kdtree" }
+        match (&self.bvh, &self.auto) {
+            (_, Some(_)) => "auto",
+            (Some(_), None) => "bvh8",
+            (None, None) => "kdtree",
+        }
+    }
+
+    /// The tree that answered the last query of each kind, `(closest, any hit)`:
+    /// "kdtree" or "bvh8".
+    #[getter]
+    fn last_accel(&self) -> (&'static str, &'static str) {
+        let name = |q: Query| match (&self.bvh, &self.auto) {
+            (Some(_), Some(w))
+                if w.lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .last[q as usize]
+                    == 0 =>
+            {
+                "kdtree"
+            }
+            (Some(_), _) => "bvh8",
+            (None, _) => "kdtree",
+        };
+        (name(Query::Closest), name(Query::Occluded))
     }
 
     #[getter]
@@ -402,9 +436,10 @@ impl Scene {
         let mode = parse_mode(mode)?;
         let rays = Rays::new(&origins, &directions, &t_min, &t_max)?;
         let out = on_pool(py, threads, || {
+            let accel = self.pick(&rays, Query::Closest, mode)?;
             HitArrays::of(self, rays.len(), |first, hits, buf| {
                 let mode = self.chunk(&rays, mode, first, hits.len(), buf)?;
-                trace::intersect_into(self.queries(), buf, trace::Order::Any, mode, hits);
+                trace::intersect_into(accel, buf, trace::Order::Any, mode, hits);
                 Ok(())
             })
         })?;
@@ -429,6 +464,7 @@ impl Scene {
         let mode = parse_mode(mode)?;
         let rays = Rays::new(&origins, &directions, &t_min, &t_max)?;
         let out = on_pool(py, threads, || {
+            let accel = self.pick(&rays, Query::Occluded, mode)?;
             let mut out = vec![false; rays.len()];
             out.par_chunks_mut(BATCH_RAYS)
                 .enumerate()
@@ -437,13 +473,7 @@ impl Scene {
                     |buf, (chunk, occluded)| {
                         let first = chunk * BATCH_RAYS;
                         let mode = self.chunk(&rays, mode, first, occluded.len(), buf)?;
-                        trace::occluded_into(
-                            self.queries(),
-                            buf,
-                            trace::Order::Any,
-                            mode,
-                            occluded,
-                        );
+                        trace::occluded_into(accel, buf, trace::Order::Any, mode, occluded);
                         Ok(())
                     },
                 )
@@ -506,7 +536,14 @@ impl Scene {
         let mode = parse_mode(mode)?.unwrap_or_else(Mode::native_packet);
         let view = view_of(eye, target, up, vfov);
         let out = on_pool(py, threads, || {
-            let (rays, hits) = trace::trace_image(self.queries(), &view, width, height, mode)?;
+            let (rays, hits, pick) =
+                trace::trace_image_faster(&self.accels(), &view, width, height, mode)?;
+            if let Some(wins) = &self.auto {
+                let mut w = wins
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                w.last[Query::Closest as usize] = pick;
+            }
             let out = HitArrays::of(self, hits.len(), |first, out, buf| {
                 out.copy_from_slice(&hits[first..first + out.len()]);
                 buf.clear();
@@ -519,6 +556,15 @@ impl Scene {
         out.into_py(py)
     }
 }
+
+/// `accel="auto"` races the trees on queries of this many rays or more: the race traces
+/// [`BATCH_RAYS`] of them a second time, on one thread, so below this it would cost
+/// more than it could gain.
+const RACE_MIN: usize = 16 * BATCH_RAYS;
+
+/// `accel="auto"` races a kind of query again after this many calls (the first of
+/// every run of this many), so that a winner follows rays whose kind changes.
+const RERACE: u32 = 16;
 
 /// A chunk of rays with a bad value: the work stops and [`Rays::bad_ray`] names it.
 #[derive(Debug)]
@@ -561,25 +607,27 @@ impl Scene {
         threads: usize,
         accel: &str,
     ) -> PyResult<Scene> {
-        let bvh = match accel {
-            "kdtree" => false,
-            "bvh8" => true,
+        let (kd, bvh, auto) = match accel {
+            "kdtree" => (true, false, false),
+            "bvh8" => (false, true, false),
+            "auto" => (true, true, true),
             _ => {
                 return Err(error(format!(
-                    "accel {accel:?}: expected \"kdtree\" or \"bvh8\""
+                    "accel {accel:?}: expected \"auto\", \"kdtree\" or \"bvh8\""
                 )));
             }
         };
         let geometry = &staged.scene.geometry;
         let (tree, bvh, triangle_normals) = on_pool(py, threads, || {
             let tree = OnceLock::new();
-            let bvh = if bvh {
-                Some(Bvh::build(geometry))
-            } else {
-                let _ = tree.set(KdTree::build(geometry));
-                None
-            };
-            (tree, bvh, geometry.triangle_normals())
+            let (k, b) = rayon::join(
+                || kd.then(|| KdTree::build(geometry)),
+                || bvh.then(|| Bvh::build(geometry)),
+            );
+            if let Some(k) = k {
+                let _ = tree.set(k);
+            }
+            (tree, b, geometry.triangle_normals())
         })?;
         Ok(Scene {
             triangle_normals,
@@ -588,6 +636,12 @@ impl Scene {
             not_renderable,
             tree,
             bvh,
+            auto: auto.then(|| {
+                Mutex::new(Wins {
+                    last: [1, 1],
+                    ..Wins::default()
+                })
+            }),
         })
     }
 
@@ -596,12 +650,59 @@ impl Scene {
         self.tree.get_or_init(|| KdTree::build(self.geometry()))
     }
 
-    /// The accelerator the queries take.
-    fn queries(&self) -> &dyn Accel {
-        match &self.bvh {
-            Some(bvh) => bvh,
-            None => self.kd(),
+    /// The trees a query may take: the one the scene was made with, or for `auto` the
+    /// kd-tree and the BVH.
+    fn accels(&self) -> Vec<&dyn Accel> {
+        match (&self.bvh, self.auto.is_some()) {
+            (Some(bvh), true) => vec![self.kd(), bvh],
+            (Some(bvh), false) => vec![bvh],
+            (None, _) => vec![self.kd()],
         }
+    }
+
+    /// The accelerator for a `query` of `rays` traced in `mode` (`None`: each chunk's
+    /// own). For `auto`, a query of [`RACE_MIN`] rays or more whose kind (query, and
+    /// the mode of a sample of its rays) has not been raced, or not in [`RERACE`]
+    /// calls, goes to whichever tree traces the sample sooner ([`trace::faster`]);
+    /// others to the winner of their kind's last race, or of their query's.
+    fn pick(&self, rays: &Rays, query: Query, mode: Option<Mode>) -> Result<&dyn Accel, BadChunk> {
+        let accels = self.accels();
+        let Some(wins) = &self.auto else {
+            return Ok(accels[0]);
+        };
+        let lock = || {
+            wins.lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+        };
+        if rays.len() < RACE_MIN {
+            return Ok(accels[lock().last[query as usize]]);
+        }
+        let mut sample = Vec::with_capacity(BATCH_RAYS);
+        let mut buf = Vec::new();
+        for r in trace::race_ranges(rays.len()) {
+            if !rays.fill(r.start, &mut buf, r.len()) {
+                return Err(BadChunk);
+            }
+            sample.extend_from_slice(&buf);
+        }
+        let kind = (
+            query,
+            mode.unwrap_or_else(|| trace::auto_mode(&sample, self.scale)),
+        );
+        let known = lock().by_kind.get(&kind).copied();
+        let win = match known {
+            Some((win, calls)) if calls % RERACE != 0 => {
+                lock().by_kind.insert(kind, (win, calls + 1));
+                win
+            }
+            _ => {
+                let win = trace::faster(&accels, &sample, trace::Order::Any, query, kind.1);
+                lock().by_kind.insert(kind, (win, 1));
+                win
+            }
+        };
+        lock().last[query as usize] = win;
+        Ok(accels[win])
     }
 }
 

@@ -86,7 +86,7 @@ def test_bvh8_scenes_match_the_rust_library(tmp_path, mode):
 
 
 def test_bvh8_and_kdtree_give_the_same_bits_in_every_mode():
-    kd, bvh = raypack.Scene.load(KNOT), raypack.Scene.load(KNOT, accel="bvh8")
+    kd, bvh = raypack.Scene.load(KNOT, accel="kdtree"), raypack.Scene.load(KNOT, accel="bvh8")
     assert kd.accel == "kdtree"
     lo, hi = kd.bounds
     o, d = rays_at(np.random.default_rng(12), 20000, lo, hi)
@@ -98,6 +98,25 @@ def test_bvh8_and_kdtree_give_the_same_bits_in_every_mode():
         assert np.array_equal(bvh.occluded(o, d, 0.0, reach, mode=mode), want_occ), mode
     for mode in ("packet", "packet4", "tile64", "stream"):
         assert same(bvh.trace_image(width=40, height=30, mode=mode), kd.trace_image(width=40, height=30)), mode
+
+
+def test_auto_races_the_trees_and_keeps_their_bits():
+    kd, auto = raypack.Scene.load(KNOT, accel="kdtree"), raypack.Scene.load(KNOT)
+    assert auto.accel == "auto" and auto.last_accel == ("bvh8", "bvh8")
+    assert kd.last_accel == ("kdtree", "kdtree")
+    lo, hi = kd.bounds
+    # 70,000 rays: enough for a race (65,536); 1,000: the last winner answers.
+    o, d = rays_at(np.random.default_rng(13), 70000, lo, hi)
+    reach = 0.5 * float(np.linalg.norm(hi - lo))
+    want = kd.intersect(o, d, mode="scalar")
+    want_occ = kd.occluded(o, d, 0.0, reach, mode="scalar")
+    for mode in ("auto", "stream", "packet16", "scalar"):
+        assert same(auto.intersect(o, d, mode=mode), want), mode
+        assert np.array_equal(auto.occluded(o, d, 0.0, reach, mode=mode), want_occ), mode
+        assert set(auto.last_accel) <= {"kdtree", "bvh8"}
+        small = auto.intersect(o[:1000], d[:1000], mode=mode)
+        assert same(small, kd.intersect(o[:1000], d[:1000], mode="scalar")), mode
+    assert same(auto.trace_image(width=40, height=30), kd.trace_image(width=40, height=30))
 
 
 def test_every_mode_and_thread_count_gives_the_same_bits():
