@@ -9,8 +9,10 @@
 //! margin. A direction component of zero gives an infinite inverse: the slab is
 //! everything or nothing, and a ray on the widened face itself gives NaN, which the
 //! `max`/`min` order drops (no limit). A component whose distances could overflow is
-//! given a NaN inverse: that axis then limits nothing. The hits come from the leaf
-//! kernel, the scalar test lane for lane, so every answer is brute force's.
+//! given a NaN inverse: that axis then limits nothing. (In the single walk a NaN on z
+//! drops y's limit with it: the reductions are two levels deep, not a chain of three;
+//! the box only widens.) The hits come from the leaf kernel, the scalar test lane for
+//! lane, so every answer is brute force's.
 
 use super::{Bvh, LEAF_BIT};
 use crate::accel::kdtree::traverse::PLANE_SLACK;
@@ -226,10 +228,12 @@ impl Bvh {
                     },
                 );
                 let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
-                // `a.max_gt(acc)` keeps `acc` where `a` is NaN, and the chains start
-                // from the ray's own bounds, never NaN.
-                let t_near = n0.max_gt(n1.max_gt(n2.max_gt(t_min)));
-                let t_far = f0.min_lt(f1.min_lt(f2.min_lt(splat(limit))));
+                // Two levels, not a chain of three. `a.max_gt(b)` is `b` where either is
+                // NaN: the pair (y, z) yields NaN only where z does, and then the x side
+                // (which starts from the ray's own bound, never NaN) stands alone, which
+                // widens the box, never narrows it.
+                let t_near = n1.max_gt(n2).max_gt(n0.max_gt(t_min));
+                let t_far = f1.min_lt(f2).min_lt(f0.min_lt(splat(limit)));
                 let mut bits = t_near.cmp_le(t_far).bits();
                 match bits.count_ones() {
                     0 => {}
