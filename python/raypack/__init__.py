@@ -177,7 +177,7 @@ class Scene:
     query of 65,536 rays or more goes to the tree that won the last race of its kind
     (closest hits or any hit, and the mode its rays take); the first such query of a
     kind, and every 16th after it, runs the race: each tree traces the same 4,096 of its
-    rays on one thread, and the faster answers. A smaller query goes to the last winner
+    rays twice on one thread (in turns A, B, B, A), and the faster answers. A smaller query goes to the last winner
     of its query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a
     ``"bvh8"`` scene builds it at its first render.
     """

@@ -558,8 +558,8 @@ impl Scene {
 }
 
 /// `accel="auto"` races the trees on queries of this many rays or more: the race traces
-/// [`BATCH_RAYS`] of them a second time, on one thread, so below this it would cost
-/// more than it could gain.
+/// [`BATCH_RAYS`] of them four times, on one thread, so below this it would cost more
+/// than it could gain.
 const RACE_MIN: usize = 16 * BATCH_RAYS;
 
 /// `accel="auto"` races a kind of query again after this many calls (the first of
