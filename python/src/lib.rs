@@ -690,18 +690,17 @@ impl Scene {
             mode.unwrap_or_else(|| trace::auto_mode(&sample, self.scale)),
         );
         let known = lock().by_kind.get(&kind).copied();
-        let win = match known {
-            Some((win, calls)) if calls % RERACE != 0 => {
-                lock().by_kind.insert(kind, (win, calls + 1));
-                win
-            }
-            _ => {
-                let win = trace::faster(&accels, &sample, trace::Order::Any, query, kind.1);
-                lock().by_kind.insert(kind, (win, 1));
-                win
-            }
+        // The race runs without the lock held.
+        let (win, calls) = match known {
+            Some((win, calls)) if calls % RERACE != 0 => (win, calls + 1),
+            _ => (
+                trace::faster(&accels, &sample, trace::Order::Any, query, kind.1),
+                1,
+            ),
         };
-        lock().last[query as usize] = win;
+        let mut wins = lock();
+        wins.by_kind.insert(kind, (win, calls));
+        wins.last[query as usize] = win;
         Ok(accels[win])
     }
 }
