@@ -455,10 +455,12 @@ order, fan-triangulated), so primitive ids compare one to one.
 
 *raypack tree*: the tree that answered raypack's calls. With `accel="auto"` the scene holds
 the kd-tree and the BVH, and the first call of each kind (closest hits or any hit, and the
-mode its rays take) races them: each traces the same 4,096 of the call's rays twice on
-one thread (turns A, B, B, A), and the faster answers this call and the next 15 of its
-kind, when it races again. Here the race falls in the warm-up call, which is not timed;
-in a call that races it adds those 4,096 rays traced four times on one thread.
+mode its rays take) races them: each traces the same 4,096 of the call's rays (16,384
+of a call of 262,144 or more; runs of 256 spread over the call) once to warm up and
+twice timed on one thread (turns A, B, then A, B, B, A), and the faster answers this
+call and the next 15 of its kind, when it races again. Here the race falls in the
+warm-up call, which is not timed; in a call that races it adds those rays traced six
+times on one thread.
 """
 
 

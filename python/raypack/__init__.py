@@ -177,8 +177,9 @@ class Scene:
     query of 65,536 rays or more goes to the tree that won the last race of its kind
     (closest hits or any hit, and the mode its rays take); the first such query of a
     kind, and every 16th after it, runs the race: each tree traces the same 4,096 of its
-    rays twice on one thread (in turns A, B, B, A), and the faster answers. A smaller query goes to the last winner
-    of its query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a
+    rays (16,384 of a query of 262,144 or more), one 16x16 tile's worth at a time spread
+    over the query, once to warm up and twice timed on one thread (in turns A, B, then
+    A, B, B, A), and the faster answers. A smaller query goes to the last winner of its query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a
     ``"bvh8"`` scene builds it at its first render.
     """
 
@@ -363,8 +364,8 @@ class Scene:
         """Closest hits of :meth:`camera_rays`, shaped ``(height, width)``, traced as
         an image: packets and tiles take blocks of neighbouring pixels, the fast way to
         trace coherent camera rays. The answers are :meth:`intersect`'s of the same rays,
-        bit for bit. With ``accel="auto"`` every call races the trees on 4,096 of the
-        image's rays (see :class:`Scene`)."""
+        bit for bit. With ``accel="auto"`` every call races the trees on a sample of
+        the image's rays (see :class:`Scene`)."""
         view = self._view(eye, target, up, vfov)
         w, h = _size("width", width), _size("height", height)
         raw = self._scene.trace_image(*view, w, h, _threads(threads), _mode(mode))

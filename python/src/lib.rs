@@ -558,7 +558,8 @@ impl Scene {
 }
 
 /// `accel="auto"` races the trees on queries of this many rays or more: the race traces
-/// [`BATCH_RAYS`] of them four times, on one thread, so below this it would cost more
+/// [`BATCH_RAYS`] of them (more of a larger query, `trace::race_rays`) six times (each
+/// tree once to warm up, twice timed) on one thread, so below this it would cost more
 /// than it could gain.
 const RACE_MIN: usize = 16 * BATCH_RAYS;
 

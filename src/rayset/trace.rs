@@ -221,9 +221,10 @@ pub fn auto_mode(rays: &[Ray], scale: f32) -> Mode {
 const AUTO_STRIDE: usize = 4;
 
 /// The index of whichever of `accels` traces `sample` (lying in `order`) sooner in
-/// `mode`, on the calling thread (0 when `accels` is empty). Each traces it twice, in
-/// the order given and then in reverse, and their totals compare: the first pass warms
-/// the caches for the next, so each accelerator takes a first and a last turn.
+/// `mode`, on the calling thread (0 when `accels` is empty). Each traces it once
+/// untimed, so that none pays for caches left cold by the caller's recent work, then
+/// twice timed, in the order given and then in reverse, so each takes a first and a
+/// last turn; their totals compare.
 /// Every accelerator gives the same answers, so this picks speed only: it is how the
 /// Python package's `accel="auto"` chooses between the kd-tree and the BVH, on a
 /// sample of the very rays it is asked about. Which tree is faster depends on the
@@ -246,6 +247,9 @@ pub fn faster(
         }
         start.elapsed()
     };
+    for a in accels {
+        time(*a, &mut hits, &mut occluded);
+    }
     let mut total = vec![std::time::Duration::ZERO; accels.len()];
     let turns = (0..accels.len()).chain((0..accels.len()).rev());
     for i in turns {
@@ -254,24 +258,38 @@ pub fn faster(
     (0..accels.len()).min_by_key(|&i| total[i]).unwrap_or(0)
 }
 
-/// The rays [`faster`] races on, as ranges of `0..n`: [`RACE_BLOCKS`] runs of [`CHUNK`] /
-/// [`RACE_BLOCKS`] consecutive rays spread evenly (runs of whole 16x16 tiles of an
-/// image set, whose tiles lie in runs of 256), or all of `0..n` when that is no more.
+/// The rays [`faster`] races on, as ranges of `0..n`: runs of 256
+/// consecutive rays (one 16x16 tile of an image set), spread evenly, [`race_rays`] in
+/// all; or all of `0..n` when that is no more. Many short runs, not a few long ones:
+/// an image's tiles differ (a model's tiles against the background's), and the race
+/// must see them in their proportions.
 pub fn race_ranges(n: usize) -> Vec<std::ops::Range<usize>> {
-    let block = CHUNK / RACE_BLOCKS;
-    if n <= CHUNK {
+    let total = race_rays(n);
+    if n <= total {
         return std::iter::once(0..n).collect();
     }
-    let step = (n - block) / (RACE_BLOCKS - 1) / block * block;
-    (0..RACE_BLOCKS)
-        .map(|k| k * step..k * step + block)
+    let runs = total / TILE_PIXELS;
+    // Starts on tiles, the first at 0 and the last within a tile of the end; as
+    // `n > total`, neighbours lie more than a tile apart before rounding, so at least
+    // one after it.
+    let start = |k: usize| k * (n - TILE_PIXELS) / (runs - 1) / TILE_PIXELS * TILE_PIXELS;
+    (0..runs)
+        .map(|k| start(k)..start(k) + TILE_PIXELS)
         .collect()
 }
 
-/// [`race_ranges`] takes this many runs, [`CHUNK`] rays in all.
-pub const RACE_BLOCKS: usize = 8;
+/// How many of `n` rays [`race_ranges`] samples: [`CHUNK`], or four times that from
+/// [`RACE_LARGE`] rays on. A sample of coherent rays traces in a fraction of a
+/// millisecond, within a timer's and the host's noise, so a large query, which can
+/// afford it, gets a larger one.
+pub fn race_rays(n: usize) -> usize {
+    if n >= RACE_LARGE { 4 * CHUNK } else { CHUNK }
+}
 
-const _: () = assert!((CHUNK / RACE_BLOCKS).is_multiple_of(TILE_PIXELS));
+/// See [`race_rays`].
+pub const RACE_LARGE: usize = 1 << 18;
+
+const _: () = assert!(CHUNK.is_multiple_of(TILE_PIXELS) && CHUNK / TILE_PIXELS >= 2);
 
 /// [`trace_image`] through whichever of `accels` traces a sample of the image's rays
 /// sooner ([`faster`]), and its index.
@@ -617,19 +635,37 @@ mod tests {
 
     #[test]
     fn race_ranges_are_whole_tiles_inside_the_rays() {
-        for n in [0, 1, 100, CHUNK, CHUNK + 1, 3 * CHUNK + 17, 1_000_003] {
+        let large = RACE_LARGE;
+        for n in [
+            0,
+            1,
+            100,
+            CHUNK,
+            CHUNK + 1,
+            3 * CHUNK + 17,
+            large - 1,
+            large,
+            1_000_003,
+        ] {
             let ranges = race_ranges(n);
             let total: usize = ranges.iter().map(|r| r.len()).sum();
-            assert_eq!(total, n.min(CHUNK), "{n} rays");
+            let want = if n >= large { 4 * CHUNK } else { CHUNK };
+            assert_eq!(total, n.min(want), "{n} rays");
             for (k, r) in ranges.iter().enumerate() {
                 assert!(r.end <= n, "{n} rays: {r:?}");
-                if n > CHUNK {
+                if n > want {
                     assert_eq!(r.start % TILE_PIXELS, 0, "{n} rays: {r:?}");
-                    assert_eq!(r.len(), CHUNK / RACE_BLOCKS);
+                    assert_eq!(r.len(), TILE_PIXELS);
                 }
                 if k > 0 {
                     assert!(ranges[k - 1].end <= r.start, "{n} rays: overlap at {r:?}");
                 }
+            }
+            // Spread: from the first tile to within a tile of the end.
+            if n > want {
+                let last = ranges.last().unwrap().start;
+                assert_eq!(ranges[0].start, 0, "{n} rays");
+                assert!(last + 2 * TILE_PIXELS > n, "{n} rays: ends at {last}");
             }
         }
     }
