@@ -906,6 +906,12 @@ def section_gi(gi, quick_flag):
     return out
 
 
+# One page per CPU the suite has run on (timings of two CPUs are never mixed on a page):
+# the file in perf/ and the CPU it names.
+CPU_PAGES = [("README.md", "AMD EPYC Zen 4 with AVX-512"),
+             ("zen3.md", "AMD EPYC Zen 3 with AVX2")]
+
+
 def page(meta, parts):
     out = ["# raypack performance", ""]
     out.append(
@@ -914,7 +920,9 @@ def page(meta, parts):
         "perf/report.py` again to bring it up to date rather than editing it. Each table "
         "names the command that reproduces it. The session notes of earlier rounds, with "
         "the experiments behind the code, are history in [log/](log/); the kernels per "
-        "instruction set and a default build beside a native one: [isa.md](isa.md).")
+        "instruction set and a default build beside a native one: [isa.md](isa.md). "
+        "The same suite on each CPU it has run on, one page each: "
+        + ", ".join(f"[{cpu}]({name})" for name, cpu in CPU_PAGES) + ".")
     out.append("")
     out.append("## Machine and run")
     out.append("")
