@@ -179,8 +179,9 @@ class Scene:
     kind, and every 16th after it, runs the race: each tree traces the same 4,096 of its
     rays (16,384 of a query of 262,144 or more), one 16x16 tile's worth at a time spread
     over the query, once to warm up and twice timed on one thread (in turns A, B, then
-    A, B, B, A), and the faster answers. A smaller query goes to the last winner of its query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a
-    ``"bvh8"`` scene builds it at its first render.
+    A, B, B, A), and the faster answers. A smaller query goes to the last winner of its
+    query (:attr:`last_accel`). :func:`render` always walks the kd-tree; a ``"bvh8"``
+    scene builds it at its first render.
     """
 
     def __init__(

@@ -678,7 +678,7 @@ impl Scene {
         if rays.len() < RACE_MIN {
             return Ok(accels[lock().last[query as usize]]);
         }
-        let mut sample = Vec::with_capacity(BATCH_RAYS);
+        let mut sample = Vec::with_capacity(trace::race_rays(rays.len()));
         let mut buf = Vec::new();
         for r in trace::race_ranges(rays.len()) {
             if !rays.fill(r.start, &mut buf, r.len()) {
